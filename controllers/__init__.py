@@ -1,0 +1,1 @@
+"""Control side of the platform: controllers, trajectory planner, road geometry."""

@@ -1,0 +1,101 @@
+"""The Python component contract: declared ports, parameters, and a pure step.
+
+A component knows nothing of transports. The master (in-process) or a thin
+runner (in its own OS process, speaking Zenoh) hosts it and calls, in order:
+
+    comp = SomeComponent(**parameters)      # parameters from the scenario YAML
+    comp.inputs, comp.outputs               # port declarations, fixed after __init__
+    outputs_0 = comp.initialize(t0, inputs_0)
+    outputs_k = comp.step(t_k, inputs_k)    # every period, t_k = t0 + k * tick
+
+`inputs` is a mapping from input port name to a Python float (size 1) or a
+read-only float64 numpy array of the declared size. The returned mapping must
+hold every output port: a float for size 1, a 1-D float64 array of the declared
+size otherwise. Returning a missing name, a wrong size or a non-finite value is
+an error the master reports with the component's name and the tick.
+
+`step` receives the values of the inputs at time t (Gauss-Seidel: the plant has
+already been advanced to t) and returns the outputs valid from t until its next
+step. The component keeps its own state between calls.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import ClassVar, Union
+
+import numpy as np
+
+Value = Union[float, np.ndarray]
+
+
+class ComponentError(Exception):
+    """A user-facing error raised by a component (bad parameter, bad input).
+
+    The message is shown as is, prefixed with the component's name; no traceback.
+    """
+
+
+@dataclass(frozen=True)
+class Port:
+    """One declared input or output signal.
+
+    Args:
+        name: signal name, snake_case, unique among the component's ports.
+        size: 1 for a scalar, N > 1 for a fixed-size float64 array.
+        unit: SI unit string as in the FMU unit definitions ("m", "rad", "m/s", "1").
+        description: one line for humans and for the recorder's manifest.
+        default: value an unconnected input holds (scalars; arrays get zeros).
+    """
+
+    name: str
+    size: int = 1
+    unit: str = "1"
+    description: str = ""
+    default: float = 0.0
+
+    def zero(self) -> Value:
+        """The default value of this port (float or zero array)."""
+        if self.size == 1:
+            return float(self.default)
+        return np.full(self.size, float(self.default))
+
+
+class Component:
+    """Base class of every Python component (controllers, planner, sources).
+
+    Subclasses set `inputs` and `outputs` (tuples of Port), either as class
+    attributes or in `__init__` when they depend on parameters, and override
+    `step`. `initialize` defaults to calling `step` at t0.
+
+    Class attributes:
+        default_period: period in seconds used when the scenario names none
+            (None: every master tick).
+    """
+
+    inputs: tuple[Port, ...] = ()
+    outputs: tuple[Port, ...] = ()
+    default_period: ClassVar[float | None] = None
+
+    def initialize(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Set up state at t0 from the initial inputs and return the initial outputs."""
+        return self.step(t0, inputs)
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Advance to time t with the given inputs; return every output."""
+        raise NotImplementedError
+
+    def finish(self) -> dict[str, float]:
+        """Called once after the last step; may return scalar metrics for the run."""
+        return {}
+
+
+def ports_by_name(ports: tuple[Port, ...]) -> dict[str, Port]:
+    """Index a port tuple by name, rejecting duplicates."""
+    index: dict[str, Port] = {}
+    for port in ports:
+        if port.name in index:
+            raise ComponentError(f"port {port.name!r} declared twice")
+        index[port.name] = port
+    return index
