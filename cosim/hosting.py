@@ -1,0 +1,42 @@
+"""How the master drives a component, wherever it runs.
+
+The master never calls a Component directly: it drives a `HostedComponent`,
+which may wrap a Python component in this process (inproc), proxy one running
+in another OS process over Zenoh, or wrap an FMU through fmpy. Every transport
+implements this protocol, so the master loop is the same for all of them and
+results are bit-identical across transports.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Protocol
+
+from cosim.component import Port, Value
+
+
+class HostedComponent(Protocol):
+    """A component as the master sees it.
+
+    Attributes:
+        name: the component's name in the scenario ("vehicle", "controller", ...).
+        inputs / outputs: the declared ports (known before `start`).
+        period_ticks: how many master ticks between two steps (>= 1).
+    """
+
+    name: str
+    inputs: tuple[Port, ...]
+    outputs: tuple[Port, ...]
+    period_ticks: int
+
+    def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Initialize at t0 and return the initial outputs."""
+        ...
+
+    def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Advance to time t (= t0 + tick * master tick) and return every output."""
+        ...
+
+    def stop(self) -> dict[str, float]:
+        """End the component (process, FMU instance); return its final metrics."""
+        ...
