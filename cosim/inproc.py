@@ -1,0 +1,132 @@
+"""In-process hosting of Python components (the `inproc` transport).
+
+`PythonComponentLaunch` says which component to host and how (it is also what
+the Zenoh transport receives to spawn a process); `InprocComponent` imports the
+class, constructs it with the scenario parameters and drives it in this process
+behind the `cosim.hosting.HostedComponent` protocol.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from cosim.component import Component, ComponentError, Port, Value, ports_by_name
+from cosim.errors import ComponentFailure, UserError
+
+
+@dataclass(frozen=True)
+class PythonComponentLaunch:
+    """How to launch one Python component, whatever the transport.
+
+    Args:
+        name: component name in the scenario.
+        class_path: "package.module:ClassName" of a `cosim.component.Component`.
+        parameters: keyword arguments for the class constructor.
+        period_ticks: master ticks between two steps (>= 1).
+    """
+
+    name: str
+    class_path: str
+    parameters: Mapping[str, Any] = field(default_factory=dict)
+    period_ticks: int = 1
+
+
+def import_component_class(class_path: str, component: str) -> type[Component]:
+    """Import "module:Class" and check it is a Component subclass.
+
+    Args:
+        class_path: "package.module:ClassName".
+        component: the component's scenario name, for error messages.
+    """
+    module_name, sep, class_name = class_path.partition(":")
+    if not sep or not module_name or not class_name:
+        raise UserError(f"component {component!r}: python class {class_path!r} "
+                        f"is not of the form 'module:Class'")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise UserError(f"component {component!r}: cannot import module "
+                        f"{module_name!r}: {exc}") from exc
+    cls = getattr(module, class_name, None)
+    if not isinstance(cls, type) or not issubclass(cls, Component):
+        raise UserError(f"component {component!r}: {class_path!r} is not a "
+                        f"cosim.component.Component subclass")
+    return cls
+
+
+def construct_component(launch: PythonComponentLaunch) -> Component:
+    """Import and construct the component of `launch`, checking its ports.
+
+    Args:
+        launch: what to construct.
+    Raises:
+        UserError naming the component when the class is missing, rejects its
+        parameters or declares invalid ports.
+    """
+    cls = import_component_class(launch.class_path, launch.name)
+    try:
+        instance = cls(**dict(launch.parameters))
+        ports_by_name(tuple(instance.inputs))
+        ports_by_name(tuple(instance.outputs))
+    except ComponentError as exc:
+        raise UserError(f"component {launch.name!r}: {exc}") from exc
+    except TypeError as exc:
+        raise UserError(f"component {launch.name!r}: bad parameters for "
+                        f"{launch.class_path}: {exc}") from exc
+    for port in (*instance.inputs, *instance.outputs):
+        if not isinstance(port, Port) or port.size < 1:
+            raise UserError(f"component {launch.name!r}: invalid port declaration {port!r}")
+    return instance
+
+
+class InprocComponent:
+    """A Python component hosted in the master's own process.
+
+    Exceptions raised by the component's `initialize`/`step` become
+    `ComponentFailure` naming the component, the tick and the cause.
+    """
+
+    def __init__(self, launch: PythonComponentLaunch) -> None:
+        """Construct the component described by `launch` (see construct_component)."""
+        self.launch = launch
+        self.name = launch.name
+        self.period_ticks = int(launch.period_ticks)
+        self.component = construct_component(launch)
+        self.inputs: tuple[Port, ...] = tuple(self.component.inputs)
+        self.outputs: tuple[Port, ...] = tuple(self.component.outputs)
+        self._last: tuple[int | None, float] = (None, 0.0)  # (tick, t) of the last call, for finish() errors
+
+    def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Call the component's `initialize(t0, inputs)`."""
+        self._last = (None, t0)
+        try:
+            return self.component.initialize(t0, inputs)
+        except Exception as exc:  # any failure of user code is reported, not raised raw
+            raise ComponentFailure(self.name, None, t0, _describe(exc)) from exc
+
+    def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Call the component's `step(t, inputs)`."""
+        self._last = (tick, t)
+        try:
+            return self.component.step(t, inputs)
+        except Exception as exc:
+            raise ComponentFailure(self.name, tick, t, _describe(exc)) from exc
+
+    def stop(self) -> dict[str, float]:
+        """Call the component's `finish()` and return its metrics."""
+        try:
+            metrics = self.component.finish() or {}
+        except Exception as exc:
+            raise ComponentFailure(self.name, *self._last,
+                                   f"finish() failed: {_describe(exc)}") from exc
+        return {str(k): float(v) for k, v in metrics.items()}
+
+
+def _describe(exc: BaseException) -> str:
+    """One line for an exception: its type (unless a ComponentError) and message."""
+    if isinstance(exc, ComponentError):
+        return str(exc)
+    return f"{type(exc).__name__}: {exc}"

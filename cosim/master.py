@@ -1,0 +1,218 @@
+"""The lockstep master: integer ticks, multi-rate periods, Gauss-Seidel order.
+
+Time is an integer tick k and t = t0 + k * tick (never accumulated). A
+component with a period of n ticks steps at k = n, 2n, ...; at k = 0 every
+component starts (initialization phase, same order). Between its steps a
+component's outputs are held (zero-order hold) in the flat signal buffer
+(`cosim.signals`). After every call the outputs are checked: a missing signal,
+a wrong size or a non-finite value stops the run with a `ComponentFailure`
+naming the component, the tick, the signal and the value.
+
+Observers (recorder, progress bar, live publisher, real-time pacer) see the
+buffer after every tick; they must not modify it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from cosim.errors import ComponentFailure
+from cosim.hosting import HostedComponent
+from cosim.schedule import step_order
+from cosim.signals import ComponentSlots, SignalLayout, build_layout
+
+
+class Observer(Protocol):
+    """Something that watches the run tick by tick."""
+
+    def begin(self, master: "Master") -> None:
+        """Called once before the initialization phase."""
+
+    def after_tick(self, tick: int, t: float, buffer: np.ndarray) -> None:
+        """Called after tick `tick` (0 = after initialization); read-only buffer."""
+
+
+@dataclass
+class _Plan:
+    """Everything the loop needs for one component, precomputed."""
+
+    name: str
+    hosted: HostedComponent
+    period: int
+    slots: ComponentSlots
+    in_index: np.ndarray
+    out_index: list[int]
+
+
+class Master:
+    """Drives hosted components in lockstep over a flat signal buffer.
+
+    Args:
+        components: name -> HostedComponent, in declaration order.
+        edges: resolved connections (src, src_port, dst, dst_port, delay).
+        tick: base step in seconds (> 0).
+        total_ticks: number of ticks after the initialization phase.
+        t0: start time.
+        observers: called after every tick (see Observer).
+        trace: when True, `self.trace` lists (tick, component, inputs copy)
+            for every start and step, for tests.
+    """
+
+    def __init__(self, components: Mapping[str, HostedComponent], edges: Iterable[Any],
+                 tick: float, total_ticks: int, t0: float = 0.0,
+                 observers: Sequence[Observer] = (), trace: bool = False) -> None:
+        edges = list(edges)
+        self.components = dict(components)
+        self.tick = float(tick)
+        self.total_ticks = int(total_ticks)
+        self.t0 = float(t0)
+        self.observers = list(observers)
+        self.trace: list[tuple[int, str, dict[str, Any]]] | None = [] if trace else None
+        self.layout: SignalLayout = build_layout(self.components, edges)
+        feedthrough = {n: bool(getattr(c, "direct_feedthrough", True))
+                       for n, c in self.components.items()}
+        self.order = step_order(list(self.components), feedthrough, edges)
+        self.buffer = self.layout.initial.copy()
+        self.ticks_done = -1  # last completed tick; -1 before initialization
+        self._plans = [self._plan(name) for name in self.order]
+        self._has_delays = self.layout.delay_src.size > 0
+
+    def _plan(self, name: str) -> _Plan:
+        comp = self.components[name]
+        period = int(comp.period_ticks)
+        if period < 1:
+            raise ValueError(f"component {name!r}: period_ticks must be >= 1, got {period}")
+        slots = self.layout.slots[name]
+        return _Plan(name, comp, period, slots,
+                     np.array(slots.in_scalar_index, dtype=np.intp),
+                     list(slots.out_scalar_index))
+
+    def time_of(self, tick: int) -> float:
+        """t = t0 + tick * h, computed from the integer tick."""
+        return self.t0 + tick * self.tick
+
+    def run(self) -> None:
+        """Initialize, then run every tick up to total_ticks."""
+        self.initialize()
+        for k in range(1, self.total_ticks + 1):
+            self.step_tick(k)
+
+    def initialize(self) -> None:
+        """Initialization phase at t0: start every component in step order."""
+        for observer in self.observers:
+            observer.begin(self)
+        t0 = self.t0
+        for plan in self._plans:
+            inputs = self._gather(plan)
+            if self.trace is not None:
+                self.trace.append((0, plan.name, _copy_inputs(inputs)))
+            self._scatter(plan, plan.hosted.start(t0, inputs), None, t0)
+        self._finish_tick(0, t0)
+
+    def step_tick(self, k: int) -> None:
+        """Run tick k: refresh delayed inputs, step the due components in order."""
+        t = self.t0 + k * self.tick
+        buf = self.buffer
+        if self._has_delays:
+            buf[self.layout.delay_dst] = buf[self.layout.delay_src]
+        for plan in self._plans:
+            if k % plan.period:
+                continue
+            inputs = self._gather(plan)
+            if self.trace is not None:
+                self.trace.append((k, plan.name, _copy_inputs(inputs)))
+            self._scatter(plan, plan.hosted.step(k, t, inputs), k, t)
+        self._finish_tick(k, t)
+
+    def _finish_tick(self, k: int, t: float) -> None:
+        self.ticks_done = k
+        for observer in self.observers:
+            observer.after_tick(k, t, self.buffer)
+
+    def _gather(self, plan: _Plan) -> dict[str, Any]:
+        """The inputs of one component as a fresh mapping (floats, read-only arrays)."""
+        buf = self.buffer
+        slots = plan.slots
+        inputs: dict[str, Any] = dict(zip(slots.in_scalar_names, buf[plan.in_index].tolist()))
+        for name, off, size in slots.in_arrays:
+            value = buf[off:off + size].copy()
+            value.flags.writeable = False
+            inputs[name] = value
+        return inputs
+
+    def _scatter(self, plan: _Plan, outputs: Any, k: int | None, t: float) -> None:
+        """Check a component's outputs and write them into the buffer."""
+        slots = plan.slots
+        try:
+            values = [float(outputs[n]) for n in slots.out_scalar_names]
+        except Exception:  # missing name, not a mapping, not a number: diagnose
+            raise _diagnose(plan, outputs, k, t) from None
+        if not all(map(math.isfinite, values)):
+            raise _diagnose(plan, outputs, k, t)
+        buf = self.buffer
+        for index, value in zip(plan.out_index, values):
+            buf[index] = value
+        for name, off, size in slots.out_arrays:
+            value = outputs.get(name) if isinstance(outputs, Mapping) else None
+            array = np.asarray(value, dtype=np.float64) if value is not None else None
+            if array is None or array.shape != (size,) or not np.isfinite(array).all():
+                raise _diagnose(plan, outputs, k, t)
+            buf[off:off + size] = array
+
+    def stop_all(self) -> tuple[dict[str, dict[str, float]], list[str]]:
+        """Stop every component (reverse step order), even after a failure.
+
+        Returns:
+            (metrics by component, error messages of components whose stop failed).
+        """
+        metrics: dict[str, dict[str, float]] = {}
+        errors: list[str] = []
+        for plan in reversed(self._plans):
+            try:
+                metrics[plan.name] = dict(plan.hosted.stop() or {})
+            except Exception as exc:  # keep stopping the others
+                errors.append(str(exc) if isinstance(exc, ComponentFailure)
+                              else f"component {plan.name!r}: stop failed: {exc}")
+        return metrics, errors
+
+
+def _copy_inputs(inputs: Mapping[str, Any]) -> dict[str, Any]:
+    return {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in inputs.items()}
+
+
+def _diagnose(plan: _Plan, outputs: Any, k: int | None, t: float) -> ComponentFailure:
+    """The precise reason a component's outputs were rejected."""
+    if not isinstance(outputs, Mapping):
+        return ComponentFailure(plan.name, k, t, f"returned {type(outputs).__name__}, "
+                                f"expected a mapping of output signals")
+    ports = [(n, 1) for n in plan.slots.out_scalar_names]
+    ports += [(n, size) for n, _, size in plan.slots.out_arrays]
+    for name, size in ports:
+        if name not in outputs:
+            return ComponentFailure(plan.name, k, t, f"output {name!r} missing")
+        problem = _value_problem(outputs[name], size)
+        if problem:
+            return ComponentFailure(plan.name, k, t, f"output {name!r} {problem}")
+    return ComponentFailure(plan.name, k, t, "invalid outputs")  # pragma: no cover
+
+
+def _value_problem(value: Any, size: int) -> str:
+    """Why `value` is not a finite float (size 1) or a finite float array of `size`."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return f"is not a number: {value!r}"
+    if size == 1 and array.ndim != 0:
+        return f"has shape {array.shape}, expected a scalar"
+    if size > 1 and array.shape != (size,):
+        return f"has shape {array.shape}, expected ({size},)"
+    bad = np.flatnonzero(~np.isfinite(array.reshape(-1)))
+    if bad.size:
+        where = "" if size == 1 else f" at [{bad[0]}]"
+        return f"is non-finite{where}: {float(array.reshape(-1)[bad[0]])!r}"
+    return ""
