@@ -1,0 +1,198 @@
+"""Reading a run folder for analysis: signals, arrays, manifest, scenario lookups.
+
+The recorder writes `signals.csv` (a `time` column, then `<component>.<signal>`
+columns, one row per master tick), `manifest.json` (the scenario as run and run
+facts) and `arrays/<component>.<signal>.csv` (`time,0,...,N-1`, one row per
+recorded window). `RunData` loads these once and offers defensive lookups: a
+missing signal is `None`, never an exception, so metrics and figures can leave
+out what a run did not record. A file that exists but cannot be read is an
+`AnalysisError` naming the file, the line and the value.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cosim.errors import UserError
+
+
+class AnalysisError(UserError):
+    """A run folder (or sweep input) that cannot be analysed; the message says why."""
+
+
+def _parse_rows(path: Path, lines: Sequence[str], width: int) -> np.ndarray:
+    """Parse CSV data lines into a (rows, width) float array, naming bad lines."""
+    data = np.empty((len(lines), width))
+    for i, line in enumerate(lines):
+        fields = line.split(",")
+        if len(fields) != width:
+            raise AnalysisError(f"{path}:{i + 2}: expected {width} fields, found {len(fields)}")
+        try:
+            data[i] = [float(f) for f in fields]
+        except ValueError:
+            bad = next(f for f in fields if not _is_float(f))
+            raise AnalysisError(f"{path}:{i + 2}: value {bad!r} is not a number") from None
+    return data
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def read_csv_table(path: Path) -> tuple[list[str], np.ndarray]:
+    """Read a recorder CSV (header line, then float rows).
+
+    A last line without its newline and with a wrong field count is a row the
+    recorder was writing when the run stopped: it is dropped, as the contract
+    keeps only complete ticks.
+
+    Args:
+        path: the CSV file.
+
+    Returns:
+        (column names, float array of shape (rows, columns)).
+    """
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise AnalysisError(f"{path}: cannot read: {exc.strerror}") from None
+    lines = text.split("\n")
+    header = [h.strip() for h in lines[0].split(",")]
+    if not header or header[0] != "time":
+        raise AnalysisError(f"{path}:1: header must start with 'time', found {lines[0][:40]!r}")
+    body = lines[1:]
+    if body and body[-1] == "":
+        body = body[:-1]
+    elif body and len(body[-1].split(",")) != len(header):
+        body = body[:-1]  # partial last row of an interrupted run
+    body = [b.rstrip("\r") for b in body]
+    return header, _parse_rows(path, body, len(header))
+
+
+@dataclass
+class ArraySignal:
+    """One recorded array signal: `times` (rows,) and `values` (rows, size)."""
+
+    times: np.ndarray
+    values: np.ndarray
+
+
+@dataclass
+class RunData:
+    """Everything an analysis needs from one run folder.
+
+    Attributes:
+        run_dir: the folder.
+        time: the master tick times (rows,).
+        columns: `<component>.<signal>` -> values (rows,).
+        manifest: manifest.json as a dict ({} when absent).
+    """
+
+    run_dir: Path
+    time: np.ndarray
+    columns: dict[str, np.ndarray]
+    manifest: dict[str, Any]
+    _arrays: dict[str, ArraySignal | None] = field(default_factory=dict)
+
+    @property
+    def scenario(self) -> dict[str, Any]:
+        """The scenario as run ({} when the manifest does not have it)."""
+        scenario = self.manifest.get("scenario")
+        return scenario if isinstance(scenario, dict) else {}
+
+    @property
+    def label(self) -> str:
+        """A short name for legends: the run folder's name."""
+        return self.run_dir.resolve().name
+
+    def signal(self, name: str) -> np.ndarray | None:
+        """The column `name` ("component.signal"), or None when not recorded."""
+        return self.columns.get(name)
+
+    def array(self, name: str) -> ArraySignal | None:
+        """The array signal `name` from arrays/<name>.csv, or None when absent."""
+        if name not in self._arrays:
+            path = self.run_dir / "arrays" / f"{name}.csv"
+            if path.is_file():
+                header, data = read_csv_table(path)
+                self._arrays[name] = ArraySignal(data[:, 0], data[:, 1:])
+            else:
+                self._arrays[name] = None
+        return self._arrays[name]
+
+    def lookup(self, dotted: str, default: Any = None) -> Any:
+        """A value from the scenario by dotted path ("components.vehicle.parameters.m")."""
+        node: Any = self.scenario
+        for key in dotted.split("."):
+            if not isinstance(node, dict) or key not in node:
+                return default
+            node = node[key]
+        return node
+
+    def number(self, dotted: str, default: float) -> float:
+        """A numeric scenario value by dotted path, `default` when absent.
+
+        Raises:
+            AnalysisError: the value is present but not a number.
+        """
+        value = self.lookup(dotted, None)
+        if value is None:
+            return default
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise AnalysisError(f"{self.run_dir / 'manifest.json'}: scenario.{dotted}: "
+                                f"expected a number, found {value!r}")
+        return float(value)
+
+    def connections(self) -> list[tuple[str, str]]:
+        """The manifest's connections as (source, destination) pairs ([] when absent)."""
+        pairs = []
+        for item in self.manifest.get("connections") or []:
+            if isinstance(item, str) and "->" in item:
+                src, dst = item.split("->", 1)
+                pairs.append((src.strip(), dst.strip()))
+            elif isinstance(item, dict) and "from" in item and "to" in item:
+                pairs.append((str(item["from"]), str(item["to"])))
+        return pairs
+
+
+def _read_manifest(run_dir: Path) -> dict[str, Any]:
+    path = run_dir / "manifest.json"
+    if not path.is_file():
+        return {}
+    try:
+        manifest = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise AnalysisError(f"{path}:{exc.lineno}: not valid JSON: {exc.msg}") from None
+    if not isinstance(manifest, dict):
+        raise AnalysisError(f"{path}: expected a JSON object at the top level")
+    return manifest
+
+
+def load_run(run_dir: str | Path) -> RunData:
+    """Load a run folder.
+
+    Args:
+        run_dir: a folder holding at least `signals.csv`.
+
+    Raises:
+        AnalysisError: the folder or its signals.csv is missing or unreadable.
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise AnalysisError(f"{run_dir}: no such run folder")
+    path = run_dir / "signals.csv"
+    if not path.is_file():
+        raise AnalysisError(f"{run_dir}: not a run folder (signals.csv is missing)")
+    header, data = read_csv_table(path)
+    columns = {name: data[:, i] for i, name in enumerate(header) if i > 0}
+    return RunData(run_dir, data[:, 0], columns, _read_manifest(run_dir))
