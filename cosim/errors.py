@@ -1,0 +1,100 @@
+"""User-facing errors of the whole platform.
+
+Every error a user can cause by what they wrote or gave us (a scenario file,
+an FMU, a component that fails mid-run) derives from `UserError`. The CLI
+prints `str(error)` without a traceback and exits with status 2; anything that
+is not a `UserError` is a bug of the platform and keeps its traceback.
+
+Errors about a file list every problem at once, one per line, in the form
+`FILE:LINE: PATH: MESSAGE` (the line is left out when unknown, the path when
+the problem is about the whole file).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+
+class UserError(Exception):
+    """Base of every error caused by user input; shown as is, without traceback."""
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One problem found in a file.
+
+    Args:
+        path: dotted path of the field in the document, e.g.
+            "components.controller.period" or "connections[2]"; "" for the file.
+        line: 1-based line in the file, or None when unknown (e.g. a value set
+            on the command line).
+        message: what is wrong, naming the offending value.
+    """
+
+    path: str
+    line: int | None
+    message: str
+
+    def format(self, file: str | Path | None) -> str:
+        """Render as "FILE:LINE: PATH: MESSAGE", leaving out unknown parts."""
+        where = str(file) if file is not None else "<scenario>"
+        if self.line is not None:
+            where += f":{self.line}"
+        if self.path:
+            where += f": {self.path}"
+        return f"{where}: {self.message}"
+
+
+class ProblemsError(UserError):
+    """A user error made of one or more located problems in one file.
+
+    Attributes:
+        file: the file the problems are in (None for an in-memory document).
+        problems: every problem found, in document order where known.
+    """
+
+    def __init__(self, file: str | Path | None, problems: Sequence[Problem]):
+        self.file = file
+        self.problems: list[Problem] = list(problems)
+        super().__init__(self._render())
+
+    def _render(self) -> str:
+        return "\n".join(p.format(self.file) for p in self.problems)
+
+    def __str__(self) -> str:
+        return self._render()
+
+
+class ScenarioError(ProblemsError):
+    """A scenario file is unreadable or invalid."""
+
+
+class WiringError(ProblemsError):
+    """The connections of a scenario do not fit the components' ports."""
+
+
+class FmuInterfaceError(UserError):
+    """An FMU cannot be used: not an FMU, wrong kind or version, bad names or parameters."""
+
+
+class ComponentFailure(UserError):
+    """A component crashed, hung past its deadline or produced a bad value mid-run.
+
+    Args:
+        component: the component's name in the scenario.
+        tick: the master tick at which it failed (None: during initialization).
+        time: the simulation time of that tick, in seconds.
+        cause: what went wrong, e.g. "output 'delta' is NaN".
+    """
+
+    def __init__(self, component: str, tick: int | None, time: float, cause: str):
+        self.component = component
+        self.tick = tick
+        self.time = time
+        self.cause = cause
+        when = "during initialization" if tick is None else f"at tick {tick}"
+        super().__init__(
+            f"component {component!r} failed {when} (t={time:.10g} s): {cause}"
+        )

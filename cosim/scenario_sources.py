@@ -1,0 +1,137 @@
+"""Scenario schema of the signal sources (disturbances: wind gusts, friction changes).
+
+Each entry of a scenario's `sources:` section becomes a Python component of
+`cosim.sources` named by its key, with one output port `value`. The fields of
+a source, except `kind`, `period` and `host`, are the keyword arguments of its
+component class, so the two stay in step (a test checks it).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import (BaseModel, ConfigDict, Discriminator, Field, PositiveFloat, Tag,
+                      model_validator)
+
+STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class SourceBase(BaseModel):
+    """Fields every source has.
+
+    Attributes:
+        period: seconds between two steps (None: every master tick).
+        host: "local" or the name of a worker that runs it.
+        unit: unit string of the output `value` ("" matches any unit).
+    """
+
+    model_config = STRICT
+    period: PositiveFloat | None = None
+    host: str = Field("local", min_length=1)
+    unit: str = ""
+
+
+class ConstantSource(SourceBase):
+    """value(t) = value."""
+
+    kind: Literal["constant"] = "constant"
+    value: float
+
+
+class StepSource(SourceBase):
+    """value(t) = initial for t < at, final for t >= at."""
+
+    kind: Literal["step"] = "step"
+    initial: float
+    final: float
+    at: float
+
+
+class RampSource(SourceBase):
+    """start until t_start, then linear to end at t_end, then end."""
+
+    kind: Literal["ramp"] = "ramp"
+    start: float
+    end: float
+    t_start: float
+    t_end: float
+
+    @model_validator(mode="after")
+    def _ordered(self) -> RampSource:
+        if not self.t_end > self.t_start:
+            raise ValueError(f"t_end ({self.t_end}) must be after t_start ({self.t_start})")
+        return self
+
+
+class GustSource(SourceBase):
+    """1-cos gust: base + amplitude/2 (1 - cos(2 pi (t - start)/duration)) inside the gust."""
+
+    kind: Literal["gust"] = "gust"
+    amplitude: float
+    start: float
+    duration: PositiveFloat
+    base: float = 0.0
+
+
+class TableSource(SourceBase):
+    """A value tabulated over time or over travelled distance.
+
+    Attributes:
+        over: "time" (abscissa t in s) or "distance" (abscissa in m travelled
+            by the point connected to inputs x, y).
+        points: [[abscissa, value], ...], abscissas strictly increasing;
+            the first and last values hold outside the table.
+        interpolation: "linear", or "previous" (value of the last point at or
+            before the abscissa).
+    """
+
+    kind: Literal["table"] = "table"
+    over: Literal["time", "distance"] = "time"
+    points: list[tuple[float, float]] = Field(min_length=1)
+    interpolation: Literal["linear", "previous"] = "linear"
+
+    @model_validator(mode="after")
+    def _increasing(self) -> TableSource:
+        for i in range(1, len(self.points)):
+            if not self.points[i][0] > self.points[i - 1][0]:
+                raise ValueError(
+                    f"point {i} abscissa {self.points[i][0]} is not greater than "
+                    f"point {i - 1} abscissa {self.points[i - 1][0]}: abscissas must "
+                    "strictly increase")
+        return self
+
+
+SOURCE_MODELS: dict[str, type[SourceBase]] = {
+    "constant": ConstantSource,
+    "step": StepSource,
+    "ramp": RampSource,
+    "gust": GustSource,
+    "table": TableSource,
+}
+
+#: kind -> "module:Class" of the component that implements it.
+SOURCE_CLASSES: dict[str, str] = {
+    "constant": "cosim.sources:Constant",
+    "step": "cosim.sources:Step",
+    "ramp": "cosim.sources:Ramp",
+    "gust": "cosim.sources:Gust",
+    "table": "cosim.sources:Table",
+}
+
+SOURCE_KIND_ERROR = "source_kind"
+
+
+def _source_tag(value: Any) -> str | None:
+    """Discriminate a source by its `kind` field; None when missing or unknown."""
+    kind = value.get("kind") if isinstance(value, dict) else getattr(value, "kind", None)
+    return f"<{kind}>" if isinstance(kind, str) and kind in SOURCE_MODELS else None
+
+
+SourceSpec = Annotated[
+    Union[tuple(Annotated[model, Tag(f"<{kind}>")] for kind, model in SOURCE_MODELS.items())],
+    Discriminator(
+        _source_tag,
+        custom_error_type=SOURCE_KIND_ERROR,
+        custom_error_message="kind must be one of " + ", ".join(SOURCE_MODELS),
+    ),
+]
