@@ -1,0 +1,171 @@
+"""Wire format of the lockstep exchange: one header, then packed float64 values.
+
+A message is a 32-byte little-endian header (kind, seq, tick as int64, then
+t as float64) followed either by the signal values of a port list, packed
+as one contiguous float64 byte string in declared port order (scalars as one
+float, arrays flattened), or by a UTF-8 JSON document for control messages.
+Float values round-trip bit for bit (raw IEEE 754 bytes, no text).
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from collections.abc import Mapping, Sequence
+from enum import IntEnum
+from typing import Any
+
+import numpy as np
+
+from cosim.component import Port, Value
+
+HEADER = struct.Struct("<qqqd")
+"""kind, seq (request number, echoed by the reply), tick, t."""
+
+
+class Kind(IntEnum):
+    """What a message is."""
+
+    HELLO = 1      # master -> component: handshake request
+    START = 2      # master -> component: initialize(t0, inputs)
+    STEP = 3       # master -> component: step(t, inputs)
+    STOP = 4       # master -> component: finish() and exit
+    PORTS = 11     # component -> master: JSON port declarations
+    OUTPUTS = 12   # component -> master: packed outputs
+    METRICS = 13   # component -> master: JSON final metrics
+    ERROR = 14     # component -> master: JSON {"cause": text}
+    DIED = 21      # master watchdog -> master: JSON {"component", "cause"}
+    TIMEOUT = 22   # master watchdog -> master: JSON {"component", "cause"}
+    LIVE = 31      # master -> watchers: packed signal vector of one tick
+    END = 32       # master -> watchers: the run is over
+
+
+class CodecError(ValueError):
+    """A value does not fit its declared port (missing, wrong shape, not a number)."""
+
+
+class Layout:
+    """The packing of a fixed port list into float64 slots.
+
+    Args:
+        ports: the ports in declared order; their sizes fix the slot layout.
+        role: "input" or "output", the word error messages name the ports with.
+    """
+
+    def __init__(self, ports: Sequence[Port], role: str = "output") -> None:
+        self.ports = tuple(ports)
+        self.role = role
+        self.names = tuple(p.name for p in self.ports)
+        self.size = sum(p.size for p in self.ports)
+        self.scalar_only = all(p.size == 1 for p in self.ports)
+        self._struct = struct.Struct(f"<qqqd{self.size}d")
+        self._slices: list[tuple[str, int, int]] = []
+        offset = 0
+        for port in self.ports:
+            self._slices.append((port.name, offset, port.size))
+            offset += port.size
+
+    def encode(self, kind: int, seq: int, tick: int, t: float, values: Mapping[str, Value]) -> bytes:
+        """Header plus every port's value; raises CodecError naming a bad port."""
+        if self.scalar_only:
+            try:
+                return self._struct.pack(kind, seq, tick, t, *[values[n] for n in self.names])
+            except (KeyError, TypeError, struct.error):
+                raise CodecError(self.problem(values) or "not packable") from None
+        return HEADER.pack(kind, seq, tick, t) + self.pack_array(values).tobytes()
+
+    def pack_array(self, values: Mapping[str, Value]) -> np.ndarray:
+        """The values as one float64 vector in slot order; raises CodecError on a bad port."""
+        buf = np.empty(self.size)
+        try:
+            for name, offset, size in self._slices:
+                if size == 1:
+                    buf[offset] = float(values[name])
+                else:
+                    array = np.asarray(values[name], dtype=np.float64)
+                    if array.shape != (size,):
+                        raise ValueError
+                    buf[offset:offset + size] = array
+        except (KeyError, TypeError, ValueError):
+            raise CodecError(self.problem(values) or "not packable") from None
+        return buf
+
+    def decode(self, data: bytes) -> dict[str, Value]:
+        """The port values of a message made by `encode` (floats, read-only arrays)."""
+        if len(data) != self._struct.size:
+            raise CodecError(f"message of {len(data)} bytes, expected {self._struct.size} "
+                             f"for ports {list(self.names)}")
+        if self.scalar_only:
+            return dict(zip(self.names, self._struct.unpack(data)[4:]))
+        flat = np.frombuffer(data, dtype="<f8", offset=HEADER.size)
+        out: dict[str, Value] = {}
+        for name, offset, size in self._slices:
+            out[name] = float(flat[offset]) if size == 1 else flat[offset:offset + size]
+        return out
+
+    def problem(self, values: Any) -> str:
+        """Why `values` cannot be packed, naming the first bad port, or "" if it can."""
+        role = self.role
+        if not isinstance(values, Mapping):
+            return f"returned {type(values).__name__}, expected a mapping of {role} signals"
+        for name, _, size in self._slices:
+            if name not in values:
+                return f"{role} {name!r} missing"
+            problem = value_problem(values[name], size)
+            if problem:
+                return f"{role} {name!r} {problem}"
+        return ""
+
+
+def value_problem(value: Any, size: int) -> str:
+    """Why `value` is not a finite float (size 1) or a finite float array of `size`, or ""."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return f"is not a number: {value!r}"
+    if size == 1 and array.ndim != 0:
+        return f"has shape {array.shape}, expected a scalar"
+    if size > 1 and array.shape != (size,):
+        return f"has shape {array.shape}, expected ({size},)"
+    flat = array.reshape(-1)
+    bad = np.flatnonzero(~np.isfinite(flat))
+    if bad.size:
+        where = "" if size == 1 else f" at [{bad[0]}]"
+        return f"is non-finite{where}: {float(flat[bad[0]])!r}"
+    return ""
+
+
+def all_finite(data: bytes) -> bool:
+    """True when every float64 after the header of `data` is finite."""
+    if len(data) - HEADER.size < 8:
+        return True
+    flat = np.frombuffer(data, dtype="<f8", offset=HEADER.size)
+    return bool(np.isfinite(flat).all())
+
+
+def encode_json(kind: int, seq: int, tick: int, t: float, document: Any) -> bytes:
+    """A control message: header plus a UTF-8 JSON document."""
+    return HEADER.pack(kind, seq, tick, t) + json.dumps(document).encode()
+
+
+def decode_json(data: bytes) -> Any:
+    """The JSON document of a message made by `encode_json`."""
+    return json.loads(data[HEADER.size:].decode())
+
+
+def ports_to_json(ports: Sequence[Port]) -> list[dict[str, Any]]:
+    """Port declarations as JSON-able dicts (for the handshake)."""
+    return [{"name": p.name, "size": p.size, "unit": p.unit,
+             "description": p.description, "default": p.default} for p in ports]
+
+
+def ports_from_json(items: Sequence[Mapping[str, Any]]) -> tuple[Port, ...]:
+    """Port declarations back from `ports_to_json`."""
+    return tuple(Port(name=str(i["name"]), size=int(i["size"]), unit=str(i["unit"]),
+                      description=str(i["description"]), default=float(i["default"]))
+                 for i in items)
+
+
+def header_tick(tick: int | None) -> int:
+    """Tick as carried in the header: -1 stands for the initialization phase (None)."""
+    return -1 if tick is None else tick

@@ -1,0 +1,123 @@
+"""Component OS processes: spawn the runner, describe how one ended, reap them all.
+
+Each process runs `python -m cosim.zenoh_transport.runner --name <name> ...`,
+so `ps` shows which component it hosts. Its stdout and stderr go to a
+temporary file whose tail is quoted when the process dies unexpectedly.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import cosim
+from cosim.errors import UserError
+from cosim.inproc import PythonComponentLaunch
+
+TAIL_CHARS = 800
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"{type(value).__name__} is not JSON-serializable")
+
+
+def _child_env() -> dict[str, str]:
+    """Environment letting the child import cosim and modules next to the master's cwd."""
+    env = dict(os.environ)
+    roots = [os.getcwd(), str(Path(cosim.__file__).resolve().parent.parent)]
+    if env.get("PYTHONPATH"):
+        roots.append(env["PYTHONPATH"])
+    env["PYTHONPATH"] = os.pathsep.join(roots)
+    return env
+
+
+class ChildProcess:
+    """One component process.
+
+    Args:
+        spec: what the process hosts.
+        run_id: the run's id (scopes every key).
+        endpoint: the master's listen endpoint the child connects to.
+    """
+
+    def __init__(self, spec: PythonComponentLaunch, run_id: str, endpoint: str) -> None:
+        self.name = spec.name
+        try:
+            params = json.dumps(dict(spec.parameters), default=_json_default)
+        except (TypeError, ValueError) as exc:
+            raise UserError(f"component {spec.name!r}: parameters cannot be sent to its "
+                            f"process: {exc}") from None
+        argv = [sys.executable, "-m", "cosim.zenoh_transport.runner", "--name", spec.name,
+                "--run-id", run_id, "--connect", endpoint, "--class", spec.class_path,
+                "--params", params, "--period-ticks", str(int(spec.period_ticks))]
+        self._log = tempfile.TemporaryFile(prefix=f"cosim-{spec.name}-")
+        self.popen = subprocess.Popen(argv, env=_child_env(), stdin=subprocess.DEVNULL,
+                                      stdout=self._log, stderr=subprocess.STDOUT)
+        self.pid = self.popen.pid
+
+    def exit_code(self) -> int | None:
+        """The exit code if the process has ended (negative: killed by that signal)."""
+        return self.popen.poll()
+
+    def describe_exit(self) -> str:
+        """How the process ended, with the tail of what it printed."""
+        code = self.popen.poll()
+        if code is None:
+            text = "process vanished from the network (liveliness token lost)"
+        elif code < 0:
+            text = f"process killed by {signal.Signals(-code).name}"
+        else:
+            text = f"process exited with code {code}"
+        tail = self.log_tail()
+        return f"{text}; last output: {tail}" if tail else text
+
+    def log_tail(self) -> str:
+        """The last lines the process printed (stdout and stderr), stripped."""
+        try:
+            self._log.seek(0, os.SEEK_END)
+            size = self._log.tell()
+            self._log.seek(max(0, size - TAIL_CHARS))
+            return self._log.read().decode(errors="replace").strip()
+        except (OSError, ValueError):
+            return ""
+
+    def close_log(self) -> None:
+        """Release the log file."""
+        self._log.close()
+
+
+def reap(children: list[ChildProcess], grace_s: float) -> None:
+    """End every child: wait up to `grace_s` for those ending on their own, SIGTERM
+    the others, then SIGKILL whatever is left; always waits so no zombie remains.
+
+    Args:
+        children: the processes to end.
+        grace_s: seconds given to the processes before they are killed.
+    """
+    deadline = time.monotonic() + grace_s
+    for child in children:
+        if child.exit_code() is None:
+            try:
+                child.popen.terminate()
+            except ProcessLookupError:
+                pass
+    for child in children:
+        try:
+            child.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            child.popen.kill()
+            child.popen.wait()
+        child.close_log()

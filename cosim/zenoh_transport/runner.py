@@ -1,0 +1,169 @@
+"""Entry point of one component process, driven in lockstep by the master over Zenoh.
+
+    python -m cosim.zenoh_transport.runner --name controller --run-id R \\
+        --connect tcp/127.0.0.1:7447 --class pkg.module:Class --params '{"k": 1}'
+
+The process joins the master's endpoint as a peer, declares a liveliness
+token, builds the component, then answers requests in a blocking receive
+loop in the main thread: HELLO (its port declarations), START, STEP and STOP.
+Exceptions and bad outputs go back to the master as an ERROR reply. The
+process ignores SIGINT (the master decides when it ends) and exits at once
+when the master's liveliness token disappears.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import zenoh
+
+from cosim.component import Component
+from cosim.errors import UserError
+from cosim.inproc import PythonComponentLaunch, _describe, construct_component
+from cosim.zenoh_transport import config
+from cosim.zenoh_transport.codec import (CodecError, Kind, Layout, HEADER, all_finite,
+                                         decode_json, encode_json, ports_to_json)
+
+MASTER_POLL_S = 0.1
+
+
+def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
+    """Command line of the runner (see the module docstring).
+
+    Args:
+        argv: arguments without the program name; None for sys.argv[1:].
+    """
+    parser = argparse.ArgumentParser(prog="cosim.zenoh_transport.runner")
+    parser.add_argument("--name", required=True, help="component name in the scenario")
+    parser.add_argument("--run-id", required=True, help="run id scoping every key")
+    parser.add_argument("--connect", required=True, help="the master's Zenoh endpoint")
+    parser.add_argument("--class", dest="class_path", required=True, help="module:Class")
+    parser.add_argument("--params", default="{}", help="constructor parameters as JSON")
+    parser.add_argument("--period-ticks", type=int, default=1, help="for ps and logs only")
+    return parser.parse_args(argv)
+
+
+class _Server:
+    """Answers the master's requests for one component."""
+
+    def __init__(self, launch: PythonComponentLaunch) -> None:
+        self.launch = launch
+        self.component: Component | None = None
+        self.build_error = ""
+        try:
+            self.component = construct_component(launch)
+        except UserError as exc:
+            self.build_error = str(exc)
+        except Exception as exc:  # user code in __init__: report, do not crash
+            self.build_error = f"component {launch.name!r}: constructor failed: {_describe(exc)}"
+        if self.component is not None:
+            self.in_layout = Layout(self.component.inputs, "input")
+            self.out_layout = Layout(self.component.outputs)
+
+    def handle(self, data: bytes) -> tuple[bytes | None, bool]:
+        """The reply to one request, and whether the process should end after it."""
+        kind, seq, tick, t = HEADER.unpack_from(data)
+        if kind == Kind.HELLO:
+            return self._hello(seq), False
+        if self.component is None:
+            return encode_json(Kind.ERROR, seq, tick, t, {"cause": self.build_error}), True
+        if kind == Kind.STEP or kind == Kind.START:
+            return self._step(kind, seq, tick, t, data), False
+        if kind == Kind.STOP:
+            return self._stop(seq, tick, t), True
+        return None, False
+
+    def _hello(self, seq: int) -> bytes:
+        if self.component is None:
+            return encode_json(Kind.ERROR, seq, -1, 0.0, {"cause": self.build_error, "build": True})
+        return encode_json(Kind.PORTS, seq, -1, 0.0, {
+            "inputs": ports_to_json(self.component.inputs),
+            "outputs": ports_to_json(self.component.outputs), "pid": os.getpid()})
+
+    def _step(self, kind: int, seq: int, tick: int, t: float, data: bytes) -> bytes:
+        assert self.component is not None
+        try:
+            inputs = self.in_layout.decode(data)
+            if kind == Kind.START:
+                outputs = self.component.initialize(t, inputs)
+            else:
+                outputs = self.component.step(t, inputs)
+        except Exception as exc:  # user code: the master reports it with tick and time
+            return encode_json(Kind.ERROR, seq, tick, t, {"cause": _describe(exc)})
+        try:
+            reply = self.out_layout.encode(Kind.OUTPUTS, seq, tick, t, outputs)
+        except CodecError as exc:
+            return encode_json(Kind.ERROR, seq, tick, t, {"cause": str(exc)})
+        if not all_finite(reply):
+            return encode_json(Kind.ERROR, seq, tick, t, {"cause": self.out_layout.problem(outputs)})
+        return reply
+
+    def _stop(self, seq: int, tick: int, t: float) -> bytes:
+        assert self.component is not None
+        try:
+            metrics = self.component.finish() or {}
+            document: dict[str, Any] = {str(k): float(v) for k, v in metrics.items()}
+        except Exception as exc:
+            return encode_json(Kind.ERROR, seq, tick, t, {"cause": f"finish() failed: {_describe(exc)}"})
+        return encode_json(Kind.METRICS, seq, tick, t, document)
+
+
+def _exit_when_master_gone(session: zenoh.Session, run_id: str) -> None:
+    """Start a thread that ends this process when the master's liveliness token goes away."""
+    watcher = session.liveliness().declare_subscriber(config.master_alive_key(run_id), history=True)
+
+    def poll() -> None:
+        while True:
+            sample = watcher.try_recv()
+            if sample is None:
+                time.sleep(MASTER_POLL_S)
+            elif sample.kind == zenoh.SampleKind.DELETE:
+                os._exit(0)  # the master is gone: nobody will ever stop us
+
+    threading.Thread(target=poll, name="master-watch", daemon=True).start()
+
+
+def serve(args: argparse.Namespace) -> int:
+    """Open the session, build the component, answer requests until STOP."""
+    launch = PythonComponentLaunch(name=args.name, class_path=args.class_path,
+                                   parameters=json.loads(args.params),
+                                   period_ticks=args.period_ticks)
+    with zenoh.open(config.client_peer_config(args.connect)) as session:
+        _exit_when_master_gone(session, args.run_id)
+        token = session.liveliness().declare_token(config.alive_key(args.run_id, args.name))
+        requests = session.declare_subscriber(config.request_key(args.run_id, args.name))
+        publisher = session.declare_publisher(config.reply_key(args.run_id, args.name))
+        server = _Server(launch)
+        done = False
+        while not done:
+            data = requests.recv().payload.to_bytes()
+            reply, done = server.handle(data)
+            if reply is not None:
+                publisher.put(reply)
+        token.undeclare()
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one component process; see the module docstring.
+
+    Args:
+        argv: command-line arguments without the program name (None: sys.argv).
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if os.getcwd() not in sys.path:
+        sys.path.insert(0, os.getcwd())
+    args = parse_args(argv)
+    return serve(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
