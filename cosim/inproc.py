@@ -76,6 +76,9 @@ def construct_component(launch: PythonComponentLaunch) -> Component:
     except TypeError as exc:
         raise UserError(f"component {launch.name!r}: bad parameters for "
                         f"{launch.class_path}: {exc}") from exc
+    except Exception as exc:  # user code in __init__: report it, no traceback
+        raise UserError(f"component {launch.name!r}: constructor failed: "
+                        f"{_describe(exc)}") from exc
     for port in (*instance.inputs, *instance.outputs):
         if not isinstance(port, Port) or port.size < 1:
             raise UserError(f"component {launch.name!r}: invalid port declaration {port!r}")

@@ -81,6 +81,7 @@ class Master:
         self.ticks_done = -1  # last completed tick; -1 before initialization
         self._plans = [self._plan(name) for name in self.order]
         self._has_delays = self.layout.delay_src.size > 0
+        self._started: list[str] = []  # components whose start was called, to stop
 
     def _plan(self, name: str) -> _Plan:
         comp = self.components[name]
@@ -111,6 +112,7 @@ class Master:
             inputs = self._gather(plan)
             if self.trace is not None:
                 self.trace.append((0, plan.name, _copy_inputs(inputs)))
+            self._started.append(plan.name)
             self._scatter(plan, plan.hosted.start(t0, inputs), None, t0)
         self._finish_tick(0, t0)
 
@@ -165,14 +167,17 @@ class Master:
             buf[off:off + size] = array
 
     def stop_all(self) -> tuple[dict[str, dict[str, float]], list[str]]:
-        """Stop every component (reverse step order), even after a failure.
+        """Stop every started component (reverse step order), even after a failure.
 
         Returns:
             (metrics by component, error messages of components whose stop failed).
         """
         metrics: dict[str, dict[str, float]] = {}
         errors: list[str] = []
+        started = set(self._started)
         for plan in reversed(self._plans):
+            if plan.name not in started:
+                continue
             try:
                 metrics[plan.name] = dict(plan.hosted.stop() or {})
             except Exception as exc:  # keep stopping the others

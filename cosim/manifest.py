@@ -1,0 +1,95 @@
+"""The run folder's manifest.json: what ran, where, with what, and how it went.
+
+Written once before tick 0 (status "running") and rewritten at the end (status
+"ok" or "failed" with the error), so even a killed run leaves a manifest.
+"""
+
+from __future__ import annotations
+
+import datetime
+import platform
+import socket
+import sys
+from importlib import metadata
+from typing import Any
+
+import cosim
+
+PACKAGES = ("cosim-vehicle", "fmpy", "eclipse-zenoh", "numpy", "pydantic", "pyyaml",
+            "typer", "rich")
+
+
+def package_versions() -> dict[str, str | None]:
+    """Installed versions of the packages a run depends on (None: not installed)."""
+    versions: dict[str, str | None] = {}
+    for name in PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    versions["cosim"] = cosim.__version__
+    return versions
+
+
+def base_manifest(scenario: Any, prepared: Any, hosted: dict[str, Any], transport: str,
+                  run_id: str, order: list[str]) -> dict[str, Any]:
+    """The manifest before tick 0.
+
+    Args:
+        scenario: the scenario as run (overrides applied).
+        prepared: the PreparedRun (FMU plans with interfaces).
+        hosted: name -> HostedComponent.
+        transport: "inproc" or "zenoh".
+        run_id: the run's id (Zenoh key scope).
+        order: the master's step order.
+    """
+    host = socket.gethostname()
+    return {
+        "name": scenario.name,
+        "run_id": run_id,
+        "status": "running",
+        "error": None,
+        "started_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "scenario_file": str(scenario.source_file) if scenario.source_file else None,
+        "scenario": scenario.model_dump(mode="json", by_alias=True),
+        "transport": transport,
+        "step_order": list(order),
+        "periods_ticks": {n: int(c.period_ticks) for n, c in hosted.items()},
+        "fmus": {plan.name: _fmu_entry(plan) for plan in prepared.fmus},
+        "hosts": {name: host for name in hosted},
+        "python": sys.version.split()[0],
+        "platform": platform.platform(),
+        "packages": package_versions(),
+    }
+
+
+def _fmu_entry(plan: Any) -> dict[str, Any]:
+    interface = plan.interface
+    return {
+        "path": str(plan.path),
+        "sha256": getattr(interface, "sha256", None),
+        "fmi_version": getattr(interface, "fmi_version", None),
+        "model_identifier": getattr(interface, "model_identifier", None),
+        "guid": getattr(interface, "guid", None),
+        "parameters": dict(plan.parameters),
+    }
+
+
+def finish_manifest(manifest: dict[str, Any], result: Any) -> dict[str, Any]:
+    """The final manifest: status, error, ticks, times, real-time factor, pacing stats.
+
+    Args:
+        manifest: the manifest written before tick 0.
+        result: the RunResult.
+    """
+    final = dict(manifest)
+    final.update({
+        "status": result.status,
+        "error": result.error,
+        "ticks": result.ticks,
+        "sim_time_s": result.sim_time_s,
+        "wall_time_s": result.wall_time_s,
+        "real_time_factor": result.real_time_factor,
+        "realtime": result.realtime,
+    })
+    return final
