@@ -13,17 +13,10 @@
 #include <stddef.h>
 
 #include "model.h"
+#include "variable_table.h"
 
-enum {
-#define VAR(id, caus, var, unit, start, min, max, desc) VR_##id,
-#include "variables.def"
-#undef VAR
-    N_VARS
-};
-
-static const VariableInfo VARIABLES[N_VARS] = {
-#define VAR(id, caus, var, unit, start, min, max, desc) \
-    { #id, CAUSALITY_##caus, VARIABILITY_##var, unit, start, min, max, desc },
+static const VariableInfo VARIABLES[] = {
+#define VAR MODEL_VARIABLE_TABLE_ROW
 #include "variables.def"
 #undef VAR
 };
@@ -366,7 +359,7 @@ const ModelDefinition MODEL = {
     "Nonlinear 8-DOF vehicle: longitudinal, lateral, yaw, roll, four wheel spins, "
     "combined-slip Dugoff tyres, quasi-static load transfer",
     VARIABLES,
-    N_VARS,
+    VR_COUNT,
     sizeof(State),
     0.01,
     validate,
