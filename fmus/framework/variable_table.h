@@ -1,0 +1,29 @@
+/*
+ * variable_table.h - optional helper for model code: expands the model's
+ * variables.def (found on the include path) into
+ *   - the enum of value references  VR_<ident> (0, 1, 2, ... in table order)
+ *     and VR_COUNT;
+ *   - MODEL_VARIABLE_TABLE_ROW, the X-macro body for the VariableInfo array:
+ *       static const VariableInfo VARIABLES[] = {
+ *       #define VAR MODEL_VARIABLE_TABLE_ROW
+ *       #include "variables.def"
+ *       #undef VAR
+ *       };
+ * Include it after model.h and <math.h> (the table may use INFINITY).
+ */
+#ifndef COSIM_VARIABLE_TABLE_H
+#define COSIM_VARIABLE_TABLE_H
+
+#include "model.h"
+
+typedef enum {
+#define VAR(ident, causality, variability, unit, start, min, max, description) VR_##ident,
+#include "variables.def"
+#undef VAR
+    VR_COUNT
+} ValueReference;
+
+#define MODEL_VARIABLE_TABLE_ROW(ident, causality, variability, unit, start, min, max, description) \
+    { #ident, CAUSALITY_##causality, VARIABILITY_##variability, unit, start, min, max, description },
+
+#endif
