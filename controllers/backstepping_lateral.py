@@ -1,0 +1,204 @@
+"""Lateral two-step backstepping of the paper (eq. 9-13) as pure functions.
+
+Error e = [yL, psiL] at the preview point, state x = [vy, r]:
+
+    e_dot = f + g x + h rho,  f = [vx psiL, 0],  g = [[1, ls], [0, 1]],  h = [0, -vx]
+
+Both laws share one structure. A path reference (e_r, x_r) is chosen, and with
+e~ = e - e_r:
+
+    alpha = x_r + g^-1 ( -Ke e~ - f(e~) )          (virtual control, desired x)
+    z     = x - alpha
+    v     = -(kz I + gz D D^T) z - (mu_hat A1 + A2) x + alpha_dot - g^T e~
+    delta = B^T v / (mu_hat B^T B)                    (least-squares extraction)
+
+- "faithful": e_r = 0 and x_r = -g^-1 h rho = [-ls vx rho, vx rho]; then alpha
+  is exactly the paper's g^-1(-ke e - f - h rho) and v its eq. 12/13 right-hand
+  side. B^T v is one scalar for two equations: on a constant curvature the
+  residual of v orthogonal to B leaves a steady error (see steady_state tests).
+- "feedforward": e_r, x_r are the dynamic equilibrium of the model on a
+  constant curvature with yL = 0 (r = vx rho; vy and the steady steer solve
+  A x + mu_hat B delta = 0; psiL from yL_dot = 0). At that point v lies in the
+  span of B, so the extraction is exact and the steady error on yL vanishes;
+  the deviation dynamics are those of the straight road. (psiL cannot vanish
+  together with yL on a curve: yL_dot = 0 needs vy + vx psiL + ls r = 0.)
+
+alpha_dot is analytic: alpha depends on (e, vx, rho) only, not on x, so it
+needs e_dot = f + g x + h rho from the measured x (no steering estimate is
+needed), vx_dot (the nominal model with the applied torque, given by the
+caller) and rho_dot = dkappa/ds vx. In the feedforward law the vx-derivative of
+the (linear in rho) equilibrium is a central difference in vx; the
+second derivative of e_r is neglected (it only acts while rho changes).
+
+The adaptation law of EQUATIONS.md, with the bracket q = v + mu_hat A1 x:
+
+    mu_hat_dot = (g_mu / mu_hat) z^T q
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cosim.component import ComponentError
+from controllers.vehicle_params import VehicleParams
+
+LATERAL_LAWS = ("faithful", "feedforward")
+
+
+@dataclass(frozen=True)
+class LateralGains:
+    """Gains and settings of the lateral law.
+
+    Args:
+        ke: step-1 gains on [yL, psiL] (> 0).
+        kz: step-2 gain on z (> 0).
+        gz: side-wind attenuation gain (>= 0), multiplies D D^T.
+        ls: preview distance [m].
+        v_min: speed floor [m/s] used in place of vx below it (the law divides by vx).
+        law: "faithful" or "feedforward".
+    """
+
+    ke: tuple[float, float] = (1.0, 1.0)
+    kz: float = 5.0
+    gz: float = 0.0
+    ls: float = 5.0
+    v_min: float = 1.0
+    law: str = "faithful"
+
+    def __post_init__(self) -> None:
+        if self.law not in LATERAL_LAWS:
+            raise ComponentError(f"lateral_law must be one of {LATERAL_LAWS}, got {self.law!r}")
+        checks = (("ke[0]", self.ke[0]), ("ke[1]", self.ke[1]), ("kz", self.kz), ("v_min", self.v_min))
+        for name, value in checks:
+            if not value > 0.0:
+                raise ComponentError(f"{name} must be > 0, got {value!r}")
+        if not self.gz >= 0.0:
+            raise ComponentError(f"gz must be >= 0, got {self.gz!r}")
+        if not self.ls >= 0.0:
+            raise ComponentError(f"ls must be >= 0, got {self.ls!r}")
+
+
+@dataclass(frozen=True)
+class LateralMeasurement:
+    """What the law reads: errors, body velocities, speed derivative, road curvature and its rate."""
+
+    y_l: float
+    psi_l: float
+    vy: float
+    r: float
+    vx: float
+    vx_dot: float
+    rho: float
+    rho_dot: float
+
+
+@dataclass(frozen=True)
+class LateralCommand:
+    """Result of the lateral law (delta before actuator limits)."""
+
+    delta: float
+    e_tilde: np.ndarray
+    alpha: np.ndarray
+    z: np.ndarray
+    v: np.ndarray
+    mu_hat_dot: float
+    V1: float
+    V2: float
+
+
+@dataclass(frozen=True)
+class PathReference:
+    """Target errors and states (and their time derivatives) the law regulates to."""
+
+    e_r: np.ndarray
+    e_r_dot: np.ndarray
+    x_r: np.ndarray
+    x_r_dot: np.ndarray
+
+
+def steady_state_per_curvature(params: VehicleParams, vx: float, mu: float, ls: float) -> np.ndarray:
+    """Equilibrium [psiL, vy, r, delta] per unit curvature with yL = 0 on the linear model.
+
+    Args:
+        params: nominal model; vx: speed [m/s] (> 0); mu: friction used by the model; ls: preview [m].
+    """
+    a = params.a(vx, mu)
+    b = mu * params.b()
+    r = vx
+    matrix = np.array([[a[0, 0], b[0]], [a[1, 0], b[1]]])
+    if abs(np.linalg.det(matrix)) < 1e-12 * np.abs(matrix).max() ** 2:
+        raise ComponentError(f"no steady-state steer at vx = {vx} m/s: model matrix is singular")
+    vy, delta = np.linalg.solve(matrix, -a[:, 1] * r)
+    return np.array([-(vy + ls * r) / vx, vy, r, delta])
+
+
+def path_reference(m: LateralMeasurement, vx: float, params: VehicleParams, gains: LateralGains,
+                   mu_hat: float) -> PathReference:
+    """The (e_r, x_r) of the selected law and their time derivatives.
+
+    Args:
+        m: measurement; vx: the speed used by the law (max(vx, v_min));
+        params: nominal model; gains: law settings; mu_hat: current friction estimate.
+    """
+    ls, rho, rho_dot, vx_dot = gains.ls, m.rho, m.rho_dot, m.vx_dot
+    if gains.law == "faithful":
+        kin, kin_dot = vx * rho, vx_dot * rho + vx * rho_dot
+        zero = np.zeros(2)
+        return PathReference(zero, zero, np.array([-ls * kin, kin]), np.array([-ls * kin_dot, kin_dot]))
+    unit = steady_state_per_curvature(params, vx, mu_hat, ls)
+    step = 1e-4 * vx
+    unit_dvx = (steady_state_per_curvature(params, vx + step, mu_hat, ls)
+                - steady_state_per_curvature(params, vx - step, mu_hat, ls)) / (2.0 * step)
+    unit_dot = unit * rho_dot + unit_dvx * rho * vx_dot
+    return PathReference(np.array([0.0, unit[0] * rho]), np.array([0.0, unit_dot[0]]),
+                         unit[1:3] * rho, unit_dot[1:3])
+
+
+def lateral_law(m: LateralMeasurement, mu_hat: float, params: VehicleParams, gains: LateralGains,
+                g_mu: float = 0.0) -> LateralCommand:
+    """Backstepping steering command (eq. 12 with mu_hat in place of mu, i.e. eq. 13).
+
+    Args:
+        m: measured errors, states and road curvature (see LateralMeasurement).
+        mu_hat: friction used by the law (the estimate, or the nominal mu when not adaptive) (> 0).
+        params: the controller's nominal vehicle parameters.
+        gains: gains, preview distance, speed floor and law selection.
+        g_mu: adaptation gain; the returned mu_hat_dot is 0 when g_mu is 0.
+    """
+    vx = max(m.vx, gains.v_min)
+    ls = gains.ls
+    ke = np.array(gains.ke, dtype=float)
+    g_inv = np.array([[1.0, -ls], [0.0, 1.0]])
+    g_t = np.array([[1.0, 0.0], [ls, 1.0]])
+    ref = path_reference(m, vx, params, gains, mu_hat)
+    e = np.array([m.y_l, m.psi_l])
+    x = np.array([m.vy, m.r])
+    e_t = e - ref.e_r
+    e_dot = np.array([vx * m.psi_l + m.vy + ls * m.r, m.r - vx * m.rho])
+    e_t_dot = e_dot - ref.e_r_dot
+    alpha = ref.x_r + g_inv @ (-ke * e_t - np.array([vx * e_t[1], 0.0]))
+    f_t_dot = np.array([m.vx_dot * e_t[1] + vx * e_t_dot[1], 0.0])
+    alpha_dot = ref.x_r_dot + g_inv @ (-ke * e_t_dot - f_t_dot)
+    z = x - alpha
+    d = params.d()
+    gain_z = gains.kz * np.eye(2) + gains.gz * np.outer(d, d)
+    a1 = params.a1(vx)
+    v = -gain_z @ z - (mu_hat * a1 + params.a2(vx)) @ x + alpha_dot - g_t @ e_t
+    b = params.b()
+    delta = float(b @ v) / (mu_hat * float(b @ b))
+    q = v + mu_hat * (a1 @ x)
+    mu_hat_dot = (g_mu / mu_hat) * float(z @ q)
+    v1 = 0.5 * float(e_t @ e_t)
+    return LateralCommand(delta=delta, e_tilde=e_t, alpha=alpha, z=z, v=v, mu_hat_dot=mu_hat_dot,
+                          V1=v1, V2=v1 + 0.5 * float(z @ z))
+
+
+def project_mu(mu_hat: float, mu_min: float, mu_max: float) -> float:
+    """Projection of the friction estimate onto [mu_min, mu_max].
+
+    Args:
+        mu_hat: the estimate after an integration step; mu_min, mu_max: bounds (0 < mu_min <= mu_max).
+    """
+    return min(mu_max, max(mu_min, mu_hat))
