@@ -76,6 +76,10 @@ class FmuComponent:
         self.inputs: tuple[Port, ...] = tuple(interface.inputs)
         self.outputs: tuple[Port, ...] = tuple(interface.outputs)
         self.parameters = {str(k): float(v) for k, v in parameters.items()}
+        arrays = [p.name for p in (*self.inputs, *self.outputs) if p.size != 1]
+        if arrays:
+            raise FmuInterfaceError(f"component {name!r}: array variables of FMU "
+                                    f"{self.path.name} are not supported yet: {', '.join(arrays)}")
         self.fmi3 = str(interface.fmi_version).startswith("3")
         vrs = interface.value_references
         self._in_names = [p.name for p in self.inputs]

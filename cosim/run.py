@@ -112,9 +112,10 @@ def _plan_fmu(scenario: Any, name: str, spec: Any) -> FmuPlan:
         path = Path(ensure_fmu(where))
     else:
         path = Path(where)
-    interface = describe_fmu(path, dict(spec.variables))
+    origin = scenario.where(("components", name, "variables"))
+    interface = describe_fmu(path, dict(spec.variables), origin=origin)
     parameters = scenario.plant_parameters(name, _start_values(interface))
-    check_parameters(interface, parameters, name)
+    check_parameters(interface, parameters, name, scenario=scenario)
     return FmuPlan(name, path, interface, parameters, scenario.period_ticks(name))
 
 
@@ -257,3 +258,45 @@ def _failure_text(exc: BaseException) -> str:
     if isinstance(exc, KeyboardInterrupt):
         return "interrupted by the user (Ctrl-C)"
     return f"internal error: {type(exc).__name__}: {exc}"
+
+
+def validate_scenario(scenario: Any) -> dict[str, Any]:
+    """Check a scenario as far as possible without running it.
+
+    Resolves and describes the FMUs, checks parameters, constructs the Python
+    components in this process to read their ports, resolves the wiring and
+    derives the step order (an algebraic loop is an error).
+
+    Args:
+        scenario: a validated `cosim.scenario.Scenario`.
+    Returns:
+        {"components": name -> (inputs, outputs), "edges": [...], "order": [...]}.
+    Raises:
+        UserError describing the first class of problems found.
+    """
+    from cosim.inproc import construct_component
+    from cosim.schedule import step_order
+    from cosim.signals import build_layout
+    from cosim.wiring import resolve_wiring
+
+    prepared = prepare_run(scenario)
+    ports: dict[str, tuple[Any, Any]] = {}
+    feedthrough: dict[str, bool] = {}
+    for plan in prepared.fmus:
+        ports[plan.name] = (plan.interface.inputs, plan.interface.outputs)
+        feedthrough[plan.name] = False
+    for launch in prepared.launches:
+        comp = construct_component(launch)
+        ports[launch.name] = (tuple(comp.inputs), tuple(comp.outputs))
+        feedthrough[launch.name] = True
+    ports = {name: ports[name] for name in prepared.names}
+    edges = resolve_wiring(scenario, ports)
+    build_layout({n: _Ports(*p) for n, p in ports.items()}, edges)
+    order = step_order(prepared.names, feedthrough, edges)
+    return {"components": ports, "edges": edges, "order": order}
+
+
+@dataclass
+class _Ports:
+    inputs: Any
+    outputs: Any

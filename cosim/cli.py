@@ -1,0 +1,181 @@
+"""The `cosim` command line: run, validate, schema, build-fmus.
+
+Every user error (bad scenario, FMU, wiring, parameters) prints one clear
+message on stderr and exits with status 2, without a traceback; a run whose
+component fails mid-way exits with status 1 after writing what it has.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from cosim.errors import UserError
+
+DEFAULT_TRANSPORT = "inproc"  # becomes "zenoh" once the Zenoh transport is complete
+EXIT_FAILED_RUN = 1
+EXIT_USER_ERROR = 2
+
+app = typer.Typer(add_completion=False, no_args_is_help=True,
+                  help="Co-simulation of closed-loop vehicle control (FMU plants, Python components).")
+
+
+def _fail(error: UserError) -> typer.Exit:
+    """Print a user error on stderr; the Exit to raise (status 2)."""
+    Console(stderr=True, highlight=False, soft_wrap=True).print(f"[red]error:[/red] {error}",
+                                                                 markup=True)
+    return typer.Exit(EXIT_USER_ERROR)
+
+
+def default_run_dir(name: str, now: datetime.datetime | None = None) -> Path:
+    """A fresh folder runs/<name>-<UTC timestamp> (a suffix when it exists).
+
+    Args:
+        name: the scenario's name.
+        now: the time to stamp (default: now, UTC).
+    """
+    now = now or datetime.datetime.now(datetime.timezone.utc)
+    base = Path("runs") / f"{name}-{now.strftime('%Y%m%dT%H%M%SZ')}"
+    candidate, n = base, 1
+    while candidate.exists():
+        n += 1
+        candidate = base.with_name(f"{base.name}-{n}")
+    return candidate
+
+
+@app.command()
+def run(
+    scenario: Path = typer.Argument(..., help="scenario YAML file"),
+    out: Optional[Path] = typer.Option(None, "--out", help="run folder (default: runs/<name>-<UTC time>)"),
+    transport: str = typer.Option(DEFAULT_TRANSPORT, "--transport", help="inproc | zenoh"),
+    set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE (YAML value), repeatable"),
+    realtime: Optional[float] = typer.Option(
+        None, "--realtime", help="pace to wall clock at FACTOR (bare --realtime: 1.0)"),
+) -> None:
+    """Run a scenario and write its run folder."""
+    from cosim.run import run_scenario
+    from cosim.scenario import load_scenario
+
+    try:
+        loaded = load_scenario(scenario, overrides=set_)
+        folder = out if out is not None else default_run_dir(loaded.name)
+        print(f"run folder: {folder}", flush=True)
+        result = run_scenario(loaded, folder, transport=transport, realtime=realtime,
+                              progress=sys.stdout.isatty())
+    except UserError as error:
+        raise _fail(error) from None
+    print_summary(result)
+    if result.status != "ok":
+        Console(stderr=True, highlight=False, soft_wrap=True).print(
+            f"[red]run failed:[/red] {result.error}", markup=True)
+        raise typer.Exit(EXIT_FAILED_RUN)
+
+
+def print_summary(result: Any, console: Console | None = None) -> None:
+    """The closing summary table of a run.
+
+    Args:
+        result: a cosim.run.RunResult.
+        console: where to print (default: stdout).
+    """
+    console = console or Console(highlight=False)
+    table = Table(title=f"run {result.status}: {result.out_dir}", show_header=False)
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    table.add_row("ticks", str(result.ticks))
+    table.add_row("sim time", f"{result.sim_time_s:.6g} s")
+    table.add_row("wall time", f"{result.wall_time_s:.4g} s")
+    table.add_row("real-time factor", f"{result.real_time_factor:.4g}")
+    for key, value in (result.realtime or {}).items():
+        table.add_row(f"realtime.{key}", f"{value:.4g}" if isinstance(value, float) else str(value))
+    for component, metrics in result.metrics.items():
+        for key, value in metrics.items():
+            table.add_row(f"{component}.{key}", f"{value:.6g}")
+    console.print(table)
+
+
+@app.command()
+def validate(file: Path = typer.Argument(..., help="scenario YAML file"),
+             set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE")) -> None:
+    """Check a scenario (schema, FMUs, parameters, wiring) without running it."""
+    from cosim.run import validate_scenario
+    from cosim.scenario import load_scenario
+
+    try:
+        checked = validate_scenario(load_scenario(file, overrides=set_))
+    except UserError as error:
+        raise _fail(error) from None
+    print(f"{file}: ok ({len(checked['components'])} components, {len(checked['edges'])} "
+          f"connections; step order: {', '.join(checked['order'])})")
+
+
+@app.command()
+def schema() -> None:
+    """Print the scenario JSON schema (for editors)."""
+    from cosim.scenario import json_schema
+
+    print(json.dumps(json_schema(), indent=2))
+
+
+@app.command("build-fmus")
+def build_fmus(out: Optional[Path] = typer.Option(None, "--out", help="output folder")) -> None:
+    """Build the built-in FMUs."""
+    from cosim.fmu_build import build_all
+
+    try:
+        paths = build_all(out)
+    except UserError as error:
+        raise _fail(error) from None
+    for path in paths:
+        print(path)
+
+
+def normalize_realtime(argv: Sequence[str]) -> list[str]:
+    """Give a bare `--realtime` its default factor 1.0 (click has no optional values).
+
+    Args:
+        argv: command-line arguments after the program name.
+    """
+    args = list(argv)
+    result: list[str] = []
+    for i, arg in enumerate(args):
+        result.append(arg)
+        if arg == "--realtime" and not _is_number(args[i + 1] if i + 1 < len(args) else None):
+            result.append("1.0")
+    return result
+
+
+def _is_number(text: str | None) -> bool:
+    try:
+        float(text)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Console-script entry point; returns the exit status.
+
+    Args:
+        argv: arguments (default: sys.argv[1:]).
+    """
+    args = normalize_realtime(sys.argv[1:] if argv is None else argv)
+    command = typer.main.get_command(app)
+    try:
+        command.main(args=args, prog_name="cosim", standalone_mode=True)
+    except SystemExit as exc:  # standalone mode always ends with SystemExit
+        code = exc.code
+        return code if isinstance(code, int) else (0 if code is None else 1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
