@@ -194,6 +194,7 @@ class FmuComponent:
         return dict(zip(self._out_names, self._out_val))
 
     def _failure(self, tick: int | None, t: float, exc: Exception) -> ComponentFailure:
+        self._initialized = False  # after an FMI error only freeInstance is allowed
         return ComponentFailure(self.name, tick, t, f"{exc} (FMU {self.path.name}: "
                                 f"{self.log.text()})")
 

@@ -4,7 +4,10 @@ Time is an integer tick k and t = t0 + k * tick (never accumulated). A
 component with a period of n ticks steps at k = n, 2n, ...; at k = 0 every
 component starts (initialization phase, same order). Between its steps a
 component's outputs are held (zero-order hold) in the flat signal buffer
-(`cosim.signals`). After every call the outputs are checked: a missing signal,
+(`cosim.signals`). A component without direct feedthrough (an FMU) steps
+from t_{k-n} to t_k with its inputs as they stand at the start of tick k,
+i.e. the values of tick k-1 (for n = 1: the implicit one-tick delay of the
+feedback edge). After every call the outputs are checked: a missing signal,
 a wrong size or a non-finite value stops the run with a `ComponentFailure`
 naming the component, the tick, the signal and the value.
 

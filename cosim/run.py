@@ -240,7 +240,10 @@ def _build_master(scenario: Any, hosted: dict[str, Any], publisher: Any, out: Pa
     """Wire the hosted components and attach the observers."""
     from cosim.wiring import resolve_wiring
 
-    edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()})
+    unsupported = {n: c.interface.unsupported for n, c in hosted.items()
+                   if isinstance(c, FmuComponent)}
+    edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()},
+                           unsupported)
     recorder = Recorder(out, scenario.record.include, scenario.record.exclude)
     pacer = RealtimePacer(realtime, scenario.tick) if realtime else None
     bar = ProgressBar(scenario.total_ticks, scenario.tick) if progress else None
@@ -290,7 +293,8 @@ def validate_scenario(scenario: Any) -> dict[str, Any]:
         ports[launch.name] = (tuple(comp.inputs), tuple(comp.outputs))
         feedthrough[launch.name] = True
     ports = {name: ports[name] for name in prepared.names}
-    edges = resolve_wiring(scenario, ports)
+    edges = resolve_wiring(scenario, ports,
+                           {plan.name: plan.interface.unsupported for plan in prepared.fmus})
     build_layout({n: _Ports(*p) for n, p in ports.items()}, edges)
     order = step_order(prepared.names, feedthrough, edges)
     return {"components": ports, "edges": edges, "order": order}
