@@ -173,7 +173,10 @@ def _apply_one(data: Any, text: str, lines: LineMap) -> str | None:
     try:
         value = parse_scalar(raw)
     except yaml.YAMLError as exc:
-        return f"value {raw!r} is not valid YAML ({exc})"
+        reason = getattr(exc, "problem", None) or type(exc).__name__
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at column {mark.column + 1}" if mark is not None else ""
+        return f"value {raw!r} is not valid YAML: {reason}{where}"
     node, loc = data, []
     created: tuple[str | int, ...] | None = None
     for depth, key in enumerate(keys):

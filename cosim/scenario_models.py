@@ -123,6 +123,11 @@ class Connection(BaseModel):
     dst: str = Field(alias="to", pattern=ENDPOINT)
     delay: int = Field(0, ge=0)
 
+    @model_validator(mode="before")
+    @classmethod
+    def _short_string(cls, value: Any) -> Any:
+        return _parse_connection(value)
+
     @model_validator(mode="after")
     def _same_form(self) -> Connection:
         if (self.src_port is None) != (self.dst_port is None):

@@ -34,14 +34,14 @@ class SourceBase(BaseModel):
 class ConstantSource(SourceBase):
     """value(t) = value."""
 
-    kind: Literal["constant"] = "constant"
+    kind: Literal["constant"]
     value: float
 
 
 class StepSource(SourceBase):
     """value(t) = initial for t < at, final for t >= at."""
 
-    kind: Literal["step"] = "step"
+    kind: Literal["step"]
     initial: float
     final: float
     at: float
@@ -50,7 +50,7 @@ class StepSource(SourceBase):
 class RampSource(SourceBase):
     """start until t_start, then linear to end at t_end, then end."""
 
-    kind: Literal["ramp"] = "ramp"
+    kind: Literal["ramp"]
     start: float
     end: float
     t_start: float
@@ -66,7 +66,7 @@ class RampSource(SourceBase):
 class GustSource(SourceBase):
     """1-cos gust: base + amplitude/2 (1 - cos(2 pi (t - start)/duration)) inside the gust."""
 
-    kind: Literal["gust"] = "gust"
+    kind: Literal["gust"]
     amplitude: float
     start: float
     duration: PositiveFloat
@@ -85,7 +85,7 @@ class TableSource(SourceBase):
             before the abscissa).
     """
 
-    kind: Literal["table"] = "table"
+    kind: Literal["table"]
     over: Literal["time", "distance"] = "time"
     points: list[tuple[float, float]] = Field(min_length=1)
     interpolation: Literal["linear", "previous"] = "linear"

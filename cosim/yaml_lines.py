@@ -139,7 +139,8 @@ def _build(node: yaml.Node, path: PathKey, lines: LineMap,
 def _build_mapping(node: yaml.MappingNode, path: PathKey, lines: LineMap,
                    problems: list[Problem], loader: _Loader) -> dict[Any, Any]:
     """Construct a dict from a mapping node; report duplicate and non-scalar keys."""
-    loader.flatten_mapping(node)  # resolves "<<" merge keys
+    explicit = {id(k) for k, _ in node.value if k.tag != "tag:yaml.org,2002:merge"}
+    loader.flatten_mapping(node)  # resolves "<<" merge keys: merged entries come first
     result: dict[Any, Any] = {}
     first_line: dict[Any, int] = {}
     for key_node, value_node in node.value:
@@ -150,10 +151,11 @@ def _build_mapping(node: yaml.MappingNode, path: PathKey, lines: LineMap,
         key = loader.construct_object(key_node)
         if not isinstance(key, (str, int, float, bool)) and key is not None:
             key = str(key)
-        if key in first_line:
+        if key in first_line and id(key_node) in explicit:
             problems.append(Problem(format_path(path + (str(key),)), line,
                                     f"duplicate key {key!r} (first at line {first_line[key]})"))
-        first_line.setdefault(key, line)
+        if id(key_node) in explicit:
+            first_line.setdefault(key, line)
         child = path + (key if isinstance(key, str) else str(key),)
         lines.lines[child] = line
         result[key] = _build(value_node, child, lines, problems, loader)
