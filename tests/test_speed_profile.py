@@ -1,0 +1,106 @@
+"""Reference speed profile: every comfort bound, start/stop, consistency (controllers.speed_profile)."""
+
+import numpy as np
+import pytest
+
+from controllers.geometry import SpecError
+from controllers.road import satory_standin
+from controllers.speed_profile import SpeedLimits, plan_speed
+
+DS = 0.5
+
+
+@pytest.fixture(scope="module")
+def satory_curvature():
+    path = satory_standin().reference
+    return path.evaluate(np.arange(0.0, path.length, DS))[3]
+
+
+def jerk(profile) -> np.ndarray:
+    """Discrete jerk v da/ds at interior points."""
+    return profile.v[1:-1] * (profile.a[2:] - profile.a[:-2]) / (2 * DS)
+
+
+@pytest.mark.parametrize("limits", [SpeedLimits(), SpeedLimits(v_max=13.5, a_lat_max=3.0, a_max=2.0,
+                                                                d_max=2.5, j_max=0.7)])
+def test_profile_respects_every_bound_and_starts_and_ends_at_rest(satory_curvature, limits):
+    prof = plan_speed(satory_curvature, DS, limits)
+    tiny = 1e-9
+    assert prof.v[0] == 0.0 and prof.v[-1] == 0.0
+    assert prof.v.max() <= limits.v_max + tiny
+    assert np.max(prof.v ** 2 * np.abs(satory_curvature)) <= limits.a_lat_max + tiny
+    assert prof.a.max() <= limits.a_max + tiny and prof.a.min() >= -limits.d_max - tiny
+    assert np.abs(jerk(prof)).max() <= limits.j_max + tiny
+
+
+def test_profile_is_not_needlessly_slow(satory_curvature):
+    limits = SpeedLimits()
+    prof = plan_speed(satory_curvature, DS, limits)
+    # the 380 m straights are long enough to reach v_max exactly
+    assert prof.v.max() == pytest.approx(limits.v_max, abs=1e-12)
+    # in the 50 m radius arc the speed reaches the lateral limit sqrt(a_lat R)
+    in_tight = np.isclose(np.abs(satory_curvature), 1 / 50, rtol=1e-12)
+    assert prof.v[in_tight].max() == pytest.approx(np.sqrt(limits.a_lat_max * 50), rel=1e-9)
+
+
+def test_acceleration_is_v_dv_ds(satory_curvature):
+    prof = plan_speed(satory_curvature, DS, SpeedLimits())
+    numeric = prof.v[1:-1] * (prof.v[2:] - prof.v[:-2]) / (2 * DS)
+    moving = prof.v[1:-1] > 2.0          # away from the sqrt singularity at rest
+    np.testing.assert_allclose(prof.a[1:-1][moving], numeric[moving], atol=5e-4)  # O(ds^2) differences
+
+
+def test_straight_line_profile_matches_the_analytic_smoothing():
+    # On a straight from rest with no stop, u = v^2/2 rises as u = a s in the
+    # envelope; the min filter then moving average of width W turn the corner
+    # at s = 0 into a parabola: u = a (s + W/2)^2 / (2 W) for |s| <= W/2 (with
+    # the grid's discrete offsets), then u = a s further on.
+    limits = SpeedLimits(v_max=13.0, a_max=1.0, d_max=1.0, j_max=1.0)
+    prof = plan_speed(np.zeros(2000), DS, limits, start_from_rest=True, stop_at_end=False)
+    half = int(np.ceil(limits.v_max / limits.j_max / DS))
+    width = 2 * half + 1
+    i = np.arange(60, 2 * half)
+    # eroded e[j] = a max(j - half, 0) ds; u[i] = mean of e[i-half .. i+half]
+    m = np.arange(-half, half + 1)[None, :] + i[:, None]
+    expected = (limits.a_max * DS * np.maximum(m - half, 0)).sum(axis=1) / width
+    np.testing.assert_allclose(0.5 * prof.v[i] ** 2, expected, rtol=1e-12, atol=1e-12)
+    assert prof.v[-1] == pytest.approx(13.0)
+
+
+def test_not_from_rest_starts_at_the_given_speed():
+    limits = SpeedLimits()
+    prof = plan_speed(np.zeros(400), DS, limits, start_from_rest=False, stop_at_end=False, v_start=6.0)
+    assert prof.v[0] == pytest.approx(6.0, abs=1e-9)
+    # a(0) is the one-sided difference of u, whose second derivative is at most 2 A / W
+    curv_bound = limits.j_max / limits.v_max
+    assert 0.0 <= prof.a[0] <= curv_bound * DS
+    assert prof.v[-1] == pytest.approx(12.0)
+
+
+def test_profile_is_deterministic(satory_curvature):
+    a = plan_speed(satory_curvature, DS, SpeedLimits())
+    b = plan_speed(satory_curvature.copy(), DS, SpeedLimits())
+    assert a.v.tobytes() == b.v.tobytes() and a.a.tobytes() == b.a.tobytes()
+
+
+def test_lookup_interpolates_and_holds_beyond_the_ends():
+    prof = plan_speed(np.zeros(400), DS, SpeedLimits(), s0=10.0)
+    v, a = prof.at([5.0, 10.0 + 0.75, 10.0 + 399 * DS + 3])
+    assert v[0] == 0.0 and a[0] == 0.0 and v[2] == 0.0 and a[2] == 0.0
+    assert v[1] == pytest.approx(0.5 * (prof.v[1] + prof.v[2]))
+
+
+@pytest.mark.parametrize("spec, message", [
+    ({"v_max": 14.0}, "speed.v_max: must stay below 50 km/h"),
+    ({"a_max": -1}, "speed.a_max: expected a positive finite number, got -1"),
+    ({"a_lat": 2}, r"speed: unknown keys \['a_lat'\]"),
+    ({"j_max": "soft"}, "speed.j_max: expected a number, got 'soft'"),
+])
+def test_bad_limits_name_the_field(spec, message):
+    with pytest.raises(SpecError, match=message):
+        SpeedLimits.from_spec(spec)
+
+
+def test_bad_curvature_is_rejected():
+    with pytest.raises(SpecError, match="finite"):
+        plan_speed(np.array([0.0, np.nan, 0.0]), DS, SpeedLimits())
