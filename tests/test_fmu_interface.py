@@ -213,3 +213,43 @@ def test_check_parameters_names_yaml_line_of_value_and_of_uncertainty(tmp_path: 
         f"{file}:10: components.vehicle.parameters.Iz: FMU 'Plant' has no parameter 'Iz'",
     ]
     assert fmu == scenario.resolve_fmu_path(scenario.components["vehicle"])
+
+
+# ---- the built-in plant, built from the repository's C sources ---------------------------
+
+CONTRACT_INPUTS = [("delta", "rad"), ("torque", "N.m"), ("wind_fx", "N"), ("wind_fy", "N"),
+                   ("mu", "1")]
+CONTRACT_OUTPUTS = [("x", "m"), ("y", "m"), ("psi", "rad"), ("vx", "m/s"), ("vy", "m/s"),
+                    ("r", "rad/s"), ("ax", "m/s2"), ("ay", "m/s2"), ("phi", "rad"),
+                    ("omega_fl", "rad/s"), ("omega_fr", "rad/s"), ("omega_rl", "rad/s"),
+                    ("omega_rr", "rad/s")]
+PAPER_TABLE_1 = {"m": 1500.0, "Iz": 2454.0, "Cf": 57500.0, "Cr": 57500.0, "lf": 1.006,
+                 "lr": 1.462, "iy": 1.2, "Rw": 0.3}
+
+
+@pytest.fixture(scope="module")
+def bicycle_fmus(tmp_path_factory) -> dict[int, Path]:
+    fmu_build = pytest.importorskip("cosim.fmu_build")
+    out = tmp_path_factory.mktemp("bicycle")
+    return {version: fmu_build.build_fmu("Bicycle", version, out) for version in (2, 3)}
+
+
+def test_built_bicycle_holds_the_plant_contract_in_both_fmi_versions(bicycle_fmus) -> None:
+    two, three = (describe_fmu(bicycle_fmus[v]) for v in (2, 3))
+    assert (two.fmi_version, three.fmi_version) == ("2.0", "3.0")
+    for iface in (two, three):
+        assert [(p.name, p.unit) for p in iface.inputs] == CONTRACT_INPUTS
+        assert [(p.name, p.unit) for p in iface.outputs] == CONTRACT_OUTPUTS
+        assert {k: iface.parameters[k].start for k in PAPER_TABLE_1} == PAPER_TABLE_1
+        assert {"cx", "lw", "x0", "y0", "psi0", "vx0"} <= set(iface.parameters)
+        assert iface.unsupported == {}
+    assert two.inputs == three.inputs and two.outputs == three.outputs
+    assert two.parameters == three.parameters
+
+
+def test_built_bicycle_parameter_checks(bicycle_fmus) -> None:
+    iface = describe_fmu(bicycle_fmus[2])
+    check_parameters(iface, {"m": 1500.0 * 1.3, "Cf": 57500.0 * 0.7, "vx0": 10.0}, "vehicle")
+    low = iface.parameters["m"].min
+    with pytest.raises(FmuInterfaceError, match=rf"parameter 'm' = -1 is below its minimum {low:g}"):
+        check_parameters(iface, {"m": -1.0}, "vehicle")
