@@ -8,7 +8,8 @@ only. Each FMU carries its C sources (FMI2 ``<SourceFiles>``, FMI3
 ``sources/buildDescription.xml``) so another platform can rebuild it.
 
 Public API: ``MODELS``, ``FmuBuildError``, ``build_fmu``, ``build_all``,
-``ensure_fmu``, ``fmu_file_name``.
+``ensure_fmu``, ``fmu_file_name``, ``build_fmu_from`` (a model folder outside
+fmus/, for tests and benchmarks).
 """
 from __future__ import annotations
 
@@ -75,12 +76,12 @@ def _platform_dir(fmi_version: int) -> str:
     return ("x86_64" if machine in ("x86_64", "amd64") else "aarch64") + "-linux"
 
 
-def model_sources(model: str) -> list[Path]:
+def model_sources(model_dir: Path) -> list[Path]:
     """All files that go into a model's FMU (framework + model folder), sorted.
 
-    :param model: model folder name under fmus/.
+    :param model_dir: the model folder (holding variables.def and model.c).
     """
-    model_dir = FMUS_DIR / model
+    model = model_dir.name
     files = [p for p in FRAMEWORK_DIR.iterdir()
              if p.suffix in (".c", ".h") and p.name != GENERATOR_SOURCE]
     files += [p for p in model_dir.iterdir()
@@ -92,10 +93,10 @@ def model_sources(model: str) -> list[Path]:
     return sorted(files, key=lambda p: p.name)
 
 
-def _c_files(model: str, fmi_version: int) -> list[Path]:
+def _c_files(model_dir: Path, fmi_version: int) -> list[Path]:
     api = FRAMEWORK_DIR / f"fmi{fmi_version}_api.c"
     runtime = [FRAMEWORK_DIR / n for n in RUNTIME_SOURCES]
-    return [api, *runtime, *sorted((FMUS_DIR / model).glob("*.c"))]
+    return [api, *runtime, *sorted(model_dir.glob("*.c"))]
 
 
 def _run_gcc(args: list[str], what: str) -> None:
@@ -108,24 +109,25 @@ def _run_gcc(args: list[str], what: str) -> None:
                             f"{proc.stderr.strip()}")
 
 
-def _includes(model: str) -> list[str]:
-    return [f"-I{FRAMEWORK_DIR}", f"-I{FMUS_DIR / model}", f"-I{fmi_include_dir()}"]
+def _includes(model_dir: Path) -> list[str]:
+    return [f"-I{FRAMEWORK_DIR}", f"-I{model_dir}", f"-I{fmi_include_dir()}"]
 
 
-def generate_model_description(model: str, fmi_version: int, work_dir: Path) -> str:
+def generate_model_description(model_dir: Path, fmi_version: int, work_dir: Path) -> str:
     """Compile the XML generator with the model's code and return its output.
 
-    :param model: model folder name under fmus/.
+    :param model_dir: the model folder (holding variables.def and model.c).
     :param fmi_version: 2 or 3.
     :param work_dir: scratch folder for the generator executable.
     """
+    model = model_dir.name
     exe = work_dir / "xmlgen"
-    model_c = [str(p) for p in sorted((FMUS_DIR / model).glob("*.c"))]
+    model_c = [str(p) for p in sorted(model_dir.glob("*.c"))]
     srcs = [str(FRAMEWORK_DIR / GENERATOR_SOURCE),
             *(str(FRAMEWORK_DIR / n) for n in RUNTIME_SOURCES), *model_c]
-    _run_gcc([*CFLAGS, *_includes(model), *srcs, "-lm", "-o", str(exe)],
+    _run_gcc([*CFLAGS, *_includes(model_dir), *srcs, "-lm", "-o", str(exe)],
              f"{model}: compiling the modelDescription generator")
-    source_names = [p.name for p in _c_files(model, fmi_version)]
+    source_names = [p.name for p in _c_files(model_dir, fmi_version)]
     proc = subprocess.run([str(exe), str(fmi_version), *source_names],
                           capture_output=True, text=True)
     if proc.returncode != 0:
@@ -134,8 +136,10 @@ def generate_model_description(model: str, fmi_version: int, work_dir: Path) -> 
     return proc.stdout
 
 
-def _build_description(model: str, fmi_version: int) -> str:
-    files = "\n".join(f'      <SourceFile name="{p.name}"/>' for p in _c_files(model, fmi_version))
+def _build_description(model_dir: Path, fmi_version: int) -> str:
+    model = model_dir.name
+    files = "\n".join(f'      <SourceFile name="{p.name}"/>'
+                      for p in _c_files(model_dir, fmi_version))
     return ('<?xml version="1.0" encoding="UTF-8"?>\n'
             '<fmiBuildDescription fmiVersion="3.0">\n'
             f'  <BuildConfiguration modelIdentifier="{model}">\n'
@@ -171,7 +175,7 @@ def _write_fmu(path: Path, entries: dict[str, bytes]) -> None:
 
 
 def build_fmu(model: str, fmi_version: int, out_dir: Path) -> Path:
-    """Compile one model into a co-simulation FMU and return the .fmu path.
+    """Compile one built-in model into a co-simulation FMU and return the .fmu path.
 
     :param model: model folder name under fmus/ (one of MODELS), e.g. "Bicycle".
     :param fmi_version: 2 (writes <model>.fmu) or 3 (writes <model>-fmi3.fmu).
@@ -182,23 +186,39 @@ def build_fmu(model: str, fmi_version: int, out_dir: Path) -> Path:
     if model not in _find_models():
         raise FmuBuildError(f"unknown model {model!r}: no {FMUS_DIR / model / 'variables.def'}"
                             f" (models: {', '.join(_find_models()) or 'none'})")
+    return build_fmu_from(FMUS_DIR / model, fmi_version, out_dir)
+
+
+def build_fmu_from(model_dir: Path, fmi_version: int, out_dir: Path) -> Path:
+    """Compile a model folder anywhere (e.g. a test or benchmark model) with the framework.
+
+    :param model_dir: folder holding variables.def and model.c; its name is the
+        model identifier.
+    :param fmi_version: 2 or 3.
+    :param out_dir: folder for the .fmu (created if missing).
+    :raises FmuBuildError: as build_fmu.
+    """
+    model_dir = Path(model_dir)
+    model = model_dir.name
     if fmi_version not in (2, 3):
         raise FmuBuildError(f"{model}: fmi_version must be 2 or 3, not {fmi_version!r}")
-    sources = model_sources(model)
+    if not (model_dir / "variables.def").is_file():
+        raise FmuBuildError(f"{model}: no variables.def in {model_dir}")
+    sources = model_sources(model_dir)
     with tempfile.TemporaryDirectory(prefix=f"fmu-{model}-") as tmp:
         work = Path(tmp)
-        xml = generate_model_description(model, fmi_version, work)
+        xml = generate_model_description(model_dir, fmi_version, work)
         lib = work / f"{model}.so"
-        _run_gcc([*CFLAGS, "-shared", f"-DMODEL_IDENTIFIER={model}", *_includes(model),
-                  *(str(p) for p in _c_files(model, fmi_version)), "-lm", "-o", str(lib)],
+        _run_gcc([*CFLAGS, "-shared", f"-DMODEL_IDENTIFIER={model}", *_includes(model_dir),
+                  *(str(p) for p in _c_files(model_dir, fmi_version)), "-lm", "-o", str(lib)],
                  f"{model}: compiling the FMI {fmi_version}.0 binary")
         entries = {"modelDescription.xml": xml.encode(),
                    f"binaries/{_platform_dir(fmi_version)}/{model}.so": lib.read_bytes()}
     for src in sources:
         entries[f"sources/{src.name}"] = src.read_bytes()
     if fmi_version == 3:
-        entries["sources/buildDescription.xml"] = _build_description(model, 3).encode()
-    readme = FMUS_DIR / model / "README.md"
+        entries["sources/buildDescription.xml"] = _build_description(model_dir, 3).encode()
+    readme = model_dir / "README.md"
     if readme.is_file():
         entries["documentation/README.md"] = readme.read_bytes()
     out = Path(out_dir) / fmu_file_name(model, fmi_version)
@@ -236,7 +256,7 @@ def ensure_fmu(name: str, out_dir: Path | None = None) -> Path:
                             f"{', '.join(_find_models()) or 'none'}; FMI 3.0 ones end in -fmi3)")
     out = Path(out_dir) if out_dir is not None else DEFAULT_OUT_DIR
     path = out / fmu_file_name(model, version)
-    inputs = [*model_sources(model), FMUS_DIR / model / "README.md",
+    inputs = [*model_sources(FMUS_DIR / model), FMUS_DIR / model / "README.md",
               FRAMEWORK_DIR / GENERATOR_SOURCE, Path(__file__)]
     newest = max(p.stat().st_mtime for p in inputs if p.exists())
     if path.is_file() and path.stat().st_mtime >= newest:

@@ -7,7 +7,6 @@ Runs on every model folder under fmus/ (Bicycle and Vehicle8DOF).
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import zipfile
 from xml.etree import ElementTree
@@ -208,15 +207,14 @@ def test_outputs_readable_in_initialization_mode(fmu_dir):
     plant.free()
 
 
-def _fake_fmus_dir(tmp_path: Path, model_c: str, unit: str = "m") -> Path:
-    root = tmp_path / "fmus"
-    shutil.copytree(fmu_build.FRAMEWORK_DIR, root / "framework")
-    (root / "Broken").mkdir()
-    (root / "Broken" / "variables.def").write_text(
+def _model_dir(tmp_path: Path, model_c: str, unit: str = "m") -> Path:
+    model_dir = tmp_path / "Broken"
+    model_dir.mkdir()
+    (model_dir / "variables.def").write_text(
         f'VAR(a, PARAMETER, FIXED, "{unit}", 1.0, 0.0, 2.0, "a")\n'
         'VAR(b, OUTPUT, CONTINUOUS, "m", 0.0, -INFINITY, INFINITY, "b")\n')
-    (root / "Broken" / "model.c").write_text(model_c)
-    return root
+    (model_dir / "model.c").write_text(model_c)
+    return model_dir
 
 
 GOOD_MODEL_C = """
@@ -237,21 +235,29 @@ const ModelDefinition MODEL = { "Broken", "{0}", "test", VARIABLES, 2, 8, 0.01,
 """
 
 
-def test_compiler_error_raises_with_gcc_message(tmp_path, monkeypatch):
-    root = _fake_fmus_dir(tmp_path, GOOD_MODEL_C.replace("return MODEL_OK; }\nstatic",
-                                                         "return MODEL_OK }\nstatic"))
-    monkeypatch.setattr(fmu_build, "FMUS_DIR", root)
-    monkeypatch.setattr(fmu_build, "FRAMEWORK_DIR", root / "framework")
+def test_minimal_model_builds_and_validates(tmp_path):
+    path = fmu_build.build_fmu_from(_model_dir(tmp_path, GOOD_MODEL_C), 3, tmp_path / "out")
+    assert validate_fmu(str(path)) == []
+    res = fmpy.simulate_fmu(str(path), stop_time=1.0, output_interval=0.25)
+    np.testing.assert_allclose(res["b"], [1.0, 1.25, 1.5, 1.75, 2.0])
+
+
+def test_compiler_error_raises_with_gcc_message(tmp_path):
+    broken = GOOD_MODEL_C.replace("return MODEL_OK; }\nstatic", "return MODEL_OK }\nstatic")
     with pytest.raises(fmu_build.FmuBuildError, match=r"(?s)Broken.*gcc failed.*model\.c.*error"):
-        fmu_build.build_fmu("Broken", 2, tmp_path / "out")
+        fmu_build.build_fmu_from(_model_dir(tmp_path, broken), 2, tmp_path / "out")
 
 
-def test_unknown_unit_is_rejected_naming_the_variable(tmp_path, monkeypatch):
-    root = _fake_fmus_dir(tmp_path, GOOD_MODEL_C, unit="furlong")
-    monkeypatch.setattr(fmu_build, "FMUS_DIR", root)
-    monkeypatch.setattr(fmu_build, "FRAMEWORK_DIR", root / "framework")
+def test_unused_variable_warning_is_an_error(tmp_path):
+    warned = GOOD_MODEL_C.replace("{ (void)s; (void)t0;", "{ int unused; (void)s; (void)t0;")
+    with pytest.raises(fmu_build.FmuBuildError, match="unused"):
+        fmu_build.build_fmu_from(_model_dir(tmp_path, warned), 2, tmp_path / "out")
+
+
+def test_unknown_unit_is_rejected_naming_the_variable(tmp_path):
+    model_dir = _model_dir(tmp_path, GOOD_MODEL_C, unit="furlong")
     with pytest.raises(fmu_build.FmuBuildError, match="variable a: unknown unit 'furlong'"):
-        fmu_build.build_fmu("Broken", 3, tmp_path / "out")
+        fmu_build.build_fmu_from(model_dir, 3, tmp_path / "out")
 
 
 def test_unknown_model_and_version_are_rejected(tmp_path):
