@@ -16,12 +16,17 @@ e~ = e - e_r:
   is exactly the paper's g^-1(-ke e - f - h rho) and v its eq. 12/13 right-hand
   side. B^T v is one scalar for two equations: on a constant curvature the
   residual of v orthogonal to B leaves a steady error (see steady_state tests).
-- "feedforward": e_r, x_r are the dynamic equilibrium of the model on a
-  constant curvature with yL = 0 (r = vx rho; vy and the steady steer solve
-  A x + mu_hat B delta = 0; psiL from yL_dot = 0). At that point v lies in the
-  span of B, so the extraction is exact and the steady error on yL vanishes;
-  the deviation dynamics are those of the straight road. (psiL cannot vanish
-  together with yL on a curve: yL_dot = 0 needs vy + vx psiL + ls r = 0.)
+- "feedforward": x_r and psiL_r are the dynamic equilibrium of the model on a
+  constant curvature (r = vx rho; vy and the steady steer solve
+  A x + mu_hat B delta = 0; psiL from yL_dot = 0), and yL_r is the target:
+  0 with ff_target "preview", or with ff_target "cg" (default) the yL at which
+  the CG lies on the path. Geometrically, with the CG on a path of curvature
+  rho and heading error psiL at the preview point, the preview point's offset
+  is yL = ls psiL + ls^2 rho / 2 to second order (the linear model's
+  yc = yL - ls psiL ignores the path's bending between CG and preview point).
+  At that equilibrium v lies in the span of B, so the extraction is exact and
+  there is no steady error; the deviation dynamics are those of the straight
+  road. psiL cannot vanish on a curve: yL_dot = 0 needs vy + vx psiL + ls r = 0.
 
 alpha_dot is analytic: alpha depends on (e, vx, rho) only, not on x, so it
 needs e_dot = f + g x + h rho from the measured x (no steering estimate is
@@ -45,6 +50,7 @@ from cosim.component import ComponentError
 from controllers.vehicle_params import VehicleParams
 
 LATERAL_LAWS = ("faithful", "feedforward")
+FF_TARGETS = ("cg", "preview")
 
 
 @dataclass(frozen=True)
@@ -58,6 +64,7 @@ class LateralGains:
         ls: preview distance [m].
         v_min: speed floor [m/s] used in place of vx below it (the law divides by vx).
         law: "faithful" or "feedforward".
+        ff_target: feedforward law only: "cg" (CG on the path) or "preview" (yL = 0).
     """
 
     ke: tuple[float, float] = (1.0, 1.0)
@@ -66,10 +73,13 @@ class LateralGains:
     ls: float = 5.0
     v_min: float = 1.0
     law: str = "faithful"
+    ff_target: str = "cg"
 
     def __post_init__(self) -> None:
         if self.law not in LATERAL_LAWS:
             raise ComponentError(f"lateral_law must be one of {LATERAL_LAWS}, got {self.law!r}")
+        if self.ff_target not in FF_TARGETS:
+            raise ComponentError(f"ff_target must be one of {FF_TARGETS}, got {self.ff_target!r}")
         checks = (("ke[0]", self.ke[0]), ("ke[1]", self.ke[1]), ("kz", self.kz), ("v_min", self.v_min))
         for name, value in checks:
             if not value > 0.0:
@@ -119,18 +129,23 @@ class PathReference:
 
 
 def steady_state_per_curvature(params: VehicleParams, vx: float, mu: float, ls: float) -> np.ndarray:
-    """Equilibrium [psiL, vy, r, delta] per unit curvature with yL = 0 on the linear model.
+    """Model equilibrium [psiL, vy, r, delta] per unit curvature at speed vx.
+
+    r = vx rho; vy and delta solve (mu A1 + A2) x + mu B delta = 0 (Cramer's rule);
+    psiL makes yL_dot = vy + vx psiL + ls r vanish.
 
     Args:
         params: nominal model; vx: speed [m/s] (> 0); mu: friction used by the model; ls: preview [m].
     """
     a = params.a(vx, mu)
-    b = mu * params.b()
+    b1, b2 = mu * params.b()
     r = vx
-    matrix = np.array([[a[0, 0], b[0]], [a[1, 0], b[1]]])
-    if abs(np.linalg.det(matrix)) < 1e-12 * np.abs(matrix).max() ** 2:
+    det = a[0, 0] * b2 - a[1, 0] * b1
+    if abs(det) < 1e-12 * max(abs(a[0, 0] * b2), abs(a[1, 0] * b1)):
         raise ComponentError(f"no steady-state steer at vx = {vx} m/s: model matrix is singular")
-    vy, delta = np.linalg.solve(matrix, -a[:, 1] * r)
+    rhs1, rhs2 = -a[0, 1] * r, -a[1, 1] * r
+    vy = (rhs1 * b2 - rhs2 * b1) / det
+    delta = (a[0, 0] * rhs2 - a[1, 0] * rhs1) / det
     return np.array([-(vy + ls * r) / vx, vy, r, delta])
 
 
@@ -152,7 +167,13 @@ def path_reference(m: LateralMeasurement, vx: float, params: VehicleParams, gain
     unit_dvx = (steady_state_per_curvature(params, vx + step, mu_hat, ls)
                 - steady_state_per_curvature(params, vx - step, mu_hat, ls)) / (2.0 * step)
     unit_dot = unit * rho_dot + unit_dvx * rho * vx_dot
-    return PathReference(np.array([0.0, unit[0] * rho]), np.array([0.0, unit_dot[0]]),
+    psi_r, psi_r_dot = unit[0] * rho, unit_dot[0]
+    if gains.ff_target == "cg":
+        # CG on the path: geometric yL = ls psiL + ls^2 rho / 2 to second order (module docstring).
+        y_r, y_r_dot = ls * psi_r + 0.5 * ls * ls * rho, ls * psi_r_dot + 0.5 * ls * ls * rho_dot
+    else:
+        y_r, y_r_dot = 0.0, 0.0
+    return PathReference(np.array([y_r, psi_r]), np.array([y_r_dot, psi_r_dot]),
                          unit[1:3] * rho, unit_dot[1:3])
 
 

@@ -58,14 +58,19 @@ class LinearPlant:
             delta: front steering angle [rad]; torque: total wheel torque [N.m];
             wind_fx, wind_fy: extra longitudinal force at the CG and side force at lw [N].
         """
-        p = self.params
-        _, _, psi, vx, vy, r = state
-        lateral = p.a(vx, self.mu) @ np.array([vy, r]) + self.mu * p.b() * delta + p.d() * wind_fy
+        p, mu = self.params, self.mu
+        _, _, psi, vx, vy, r = state.tolist()
+        # Scalar form of (mu A1 + A2) x + mu B delta + D Fwy (numpy is slow on 2-vectors).
+        cf2, cr2 = 2.0 * p.Cf, 2.0 * p.Cr
+        cross = cr2 * p.lr - cf2 * p.lf
+        vy_dot = (mu * (-(cf2 + cr2) * vy + cross * r) / vx + mu * cf2 * delta + wind_fy) / p.m - vx * r
+        r_dot = (mu * (cross * vy - (cf2 * p.lf**2 + cr2 * p.lr**2) * r) / vx
+                 + mu * cf2 * p.lf * delta + p.lw * wind_fy) / p.Iz
         fwx = wind_fx - self.cx * vx * vx
         vx_dot = (torque / p.Rw + p.m * vy * r + fwx) / p.me
-        return np.array([vx * math.cos(psi) - vy * math.sin(psi),
-                         vx * math.sin(psi) + vy * math.cos(psi),
-                         r, vx_dot, lateral[0], lateral[1]])
+        cos_psi, sin_psi = math.cos(psi), math.sin(psi)
+        return np.array([vx * cos_psi - vy * sin_psi, vx * sin_psi + vy * cos_psi,
+                         r, vx_dot, vy_dot, r_dot])
 
     def step(self, dt: float, delta: float, torque: float,
              wind_fx: float = 0.0, wind_fy: float = 0.0) -> None:

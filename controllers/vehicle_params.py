@@ -7,8 +7,8 @@ inertia, tyre stiffness) mean something. The matrices follow EQUATIONS.md:
     x_dot = (mu A1 + A2) x + mu B delta + D Fwy,   x = [vy, r]
     me vx_dot = tau_w / Rw + m vy r + Fwx,         me = m + iy / Rw^2
 
-lw (side-wind lever arm) has no value in the paper: the default 0.5 m is the
-platform's choice (the Bicycle FMU documents the same default).
+lw (side-wind lever arm) has no value in the paper: the default 0.3 m is the
+one fmus/Bicycle/variables.def chose (keep both in step).
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ class VehicleParams:
     lr: float = 1.462
     iy: float = 1.2
     Rw: float = 0.3
-    lw: float = 0.5
+    lw: float = 0.3
 
     def __post_init__(self) -> None:
         for field in fields(self):

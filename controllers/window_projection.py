@@ -102,29 +102,34 @@ def _nearest_chord(window: TrajectoryWindow, px: float, py: float) -> tuple[int,
     return i, float(t[i])
 
 
-def _hermite(window: TrajectoryWindow, i: int, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Position, first and second derivative in t of the Hermite curve on segment i."""
-    step = window.s[i + 1] - window.s[i]
-    p0 = np.array([window.x[i], window.y[i]])
-    p1 = np.array([window.x[i + 1], window.y[i + 1]])
-    m0 = step * np.array([math.cos(window.psi[i]), math.sin(window.psi[i])])
-    m1 = step * np.array([math.cos(window.psi[i + 1]), math.sin(window.psi[i + 1])])
+def _segment(window: TrajectoryWindow, i: int) -> tuple[float, ...]:
+    """End positions and end tangents (scaled by the arc-length step) of segment i as floats."""
+    step = float(window.s[i + 1] - window.s[i])
+    psi0, psi1 = float(window.psi[i]), float(window.psi[i + 1])
+    return (float(window.x[i]), float(window.y[i]), step * math.cos(psi0), step * math.sin(psi0),
+            float(window.x[i + 1]), float(window.y[i + 1]), step * math.cos(psi1), step * math.sin(psi1))
+
+
+def _hermite(seg: tuple[float, ...], t: float) -> tuple[tuple[float, float], ...]:
+    """Position, first and second t-derivative of the Hermite curve of a segment (scalar math)."""
+    x0, y0, mx0, my0, x1, y1, mx1, my1 = seg
     t2, t3 = t * t, t * t * t
-    pos = (2 * t3 - 3 * t2 + 1) * p0 + (t3 - 2 * t2 + t) * m0 + (-2 * t3 + 3 * t2) * p1 + (t3 - t2) * m1
-    d1 = (6 * t2 - 6 * t) * p0 + (3 * t2 - 4 * t + 1) * m0 + (-6 * t2 + 6 * t) * p1 + (3 * t2 - 2 * t) * m1
-    d2 = (12 * t - 6) * p0 + (6 * t - 4) * m0 + (-12 * t + 6) * p1 + (6 * t - 2) * m1
-    return pos, d1, d2
+    h = (2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t, -2 * t3 + 3 * t2, t3 - t2)
+    h1 = (6 * t2 - 6 * t, 3 * t2 - 4 * t + 1, -6 * t2 + 6 * t, 3 * t2 - 2 * t)
+    h2 = (12 * t - 6, 6 * t - 4, -12 * t + 6, 6 * t - 2)
+    return tuple((w[0] * x0 + w[1] * mx0 + w[2] * x1 + w[3] * mx1,
+                  w[0] * y0 + w[1] * my0 + w[2] * y1 + w[3] * my1) for w in (h, h1, h2))
 
 
-def _refine(window: TrajectoryWindow, i: int, t: float, point: np.ndarray) -> float:
-    """Newton iterations for the foot parameter on the Hermite curve of segment i."""
+def _refine(seg: tuple[float, ...], t: float, px: float, py: float) -> float:
+    """Newton iterations for the foot parameter on the Hermite curve of a segment."""
     for _ in range(NEWTON_ITERATIONS):
-        pos, d1, d2 = _hermite(window, i, t)
-        diff = pos - point
-        slope = float(d1 @ d1 + diff @ d2)
+        (x, y), (dx, dy), (ddx, ddy) = _hermite(seg, t)
+        ex, ey = x - px, y - py
+        slope = dx * dx + dy * dy + ex * ddx + ey * ddy
         if slope <= 0.0:
             break
-        t = min(1.0, max(0.0, t - float(diff @ d1) / slope))
+        t = min(1.0, max(0.0, t - (ex * dx + ey * dy) / slope))
     return t
 
 
@@ -161,18 +166,16 @@ def project(window: TrajectoryWindow, px: float, py: float) -> Projection:
         beyond = _extrapolate(window, -1, px, py)
         if beyond is not None:
             return beyond
-    point = np.array([px, py])
-    t = _refine(window, i, t, point)
-    pos, d1, _ = _hermite(window, i, t)
-    tangent = d1 / max(float(np.hypot(d1[0], d1[1])), 1e-300)
-    diff = point - pos
+    seg = _segment(window, i)
+    t = _refine(seg, t, px, py)
+    (x, y), (dx, dy), _ = _hermite(seg, t)
+    norm = max(math.hypot(dx, dy), 1e-300)
     step = window.s[i + 1] - window.s[i]
 
     def lerp(values: np.ndarray) -> float:
         return float(values[i] + t * (values[i + 1] - values[i]))
 
-    return Projection(s=lerp(window.s), x=float(pos[0]), y=float(pos[1]),
-                      offset=float(tangent[0] * diff[1] - tangent[1] * diff[0]),
+    return Projection(s=lerp(window.s), x=x, y=y, offset=(dx * (py - y) - dy * (px - x)) / norm,
                       psi_path=lerp(window.psi), kappa=lerp(window.kappa),
                       dkappa_ds=float((window.kappa[i + 1] - window.kappa[i]) / step),
                       v=lerp(window.v), a=lerp(window.a), extrapolated=0)
