@@ -10,9 +10,9 @@ Float values round-trip bit for bit (raw IEEE 754 bytes, no text).
 from __future__ import annotations
 
 import json
+import math
 import struct
 from collections.abc import Mapping, Sequence
-from enum import IntEnum
 from typing import Any
 
 import numpy as np
@@ -23,8 +23,8 @@ HEADER = struct.Struct("<qqqd")
 """kind, seq (request number, echoed by the reply), tick, t."""
 
 
-class Kind(IntEnum):
-    """What a message is."""
+class Kind:
+    """What a message is (plain ints: enum member lookups are slow on the hot path)."""
 
     HELLO = 1      # master -> component: handshake request
     START = 2      # master -> component: initialize(t0, inputs)
@@ -65,14 +65,28 @@ class Layout:
             self._slices.append((port.name, offset, port.size))
             offset += port.size
 
-    def encode(self, kind: int, seq: int, tick: int, t: float, values: Mapping[str, Value]) -> bytes:
-        """Header plus every port's value; raises CodecError naming a bad port."""
+    def encode(self, kind: int, seq: int, tick: int, t: float, values: Mapping[str, Value],
+               finite: bool = False) -> bytes:
+        """Header plus every port's value; raises CodecError naming a bad port.
+
+        Args:
+            kind, seq, tick, t: the header fields.
+            values: one value per port (float for size 1, array of the port's size).
+            finite: also reject NaN and infinite values.
+        """
         if self.scalar_only:
             try:
-                return self._struct.pack(kind, seq, tick, t, *[values[n] for n in self.names])
+                floats = [values[n] for n in self.names]
+                message = self._struct.pack(kind, seq, tick, t, *floats)
             except (KeyError, TypeError, struct.error):
                 raise CodecError(self.problem(values) or "not packable") from None
-        return HEADER.pack(kind, seq, tick, t) + self.pack_array(values).tobytes()
+            if finite and not all(map(math.isfinite, floats)):
+                raise CodecError(self.problem(values))
+            return message
+        buf = self.pack_array(values)
+        if finite and not np.isfinite(buf).all():
+            raise CodecError(self.problem(values))
+        return HEADER.pack(kind, seq, tick, t) + buf.tobytes()
 
     def pack_array(self, values: Mapping[str, Value]) -> np.ndarray:
         """The values as one float64 vector in slot order; raises CodecError on a bad port."""
@@ -133,14 +147,6 @@ def value_problem(value: Any, size: int) -> str:
         where = "" if size == 1 else f" at [{bad[0]}]"
         return f"is non-finite{where}: {float(flat[bad[0]])!r}"
     return ""
-
-
-def all_finite(data: bytes) -> bool:
-    """True when every float64 after the header of `data` is finite."""
-    if len(data) - HEADER.size < 8:
-        return True
-    flat = np.frombuffer(data, dtype="<f8", offset=HEADER.size)
-    return bool(np.isfinite(flat).all())
 
 
 def encode_json(kind: int, seq: int, tick: int, t: float, document: Any) -> bytes:

@@ -23,7 +23,7 @@ from cosim.errors import ComponentFailure, UserError
 from cosim.inproc import PythonComponentLaunch
 from cosim.zenoh_transport import config
 from cosim.zenoh_transport.codec import (HEADER, CodecError, Kind, Layout, decode_json,
-                                         encode_json, header_tick, ports_from_json)
+                                         header_tick, ports_from_json)
 from cosim.zenoh_transport.live import LivePublisher
 from cosim.zenoh_transport.processes import ChildProcess, reap
 from cosim.zenoh_transport.watchdog import Watchdog
@@ -45,7 +45,8 @@ class RemoteComponent:
         self.pid = pid
         self.in_layout = Layout(inputs, "input")
         self.out_layout = Layout(outputs, "output")
-        self.publisher = host.session.declare_publisher(config.request_key(host.run_id, spec.name))
+        self.publisher = host.session.declare_publisher(
+            config.request_key(host.run_id, spec.name), express=True)
         self._host = host
 
     def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
@@ -193,7 +194,7 @@ class ZenohComponents:
             raise ComponentFailure(name, None, 0.0, f"{child.describe_exit()} before its handshake")
 
     # ----------------------------------------------------------------- exchanges
-    def exchange_outputs(self, remote: RemoteComponent, kind: Kind, tick: int | None,
+    def exchange_outputs(self, remote: RemoteComponent, kind: int, tick: int | None,
                          t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Send START or STEP with `inputs` to `remote`; return its decoded outputs."""
         try:

@@ -110,6 +110,6 @@ class Watchdog:
         cause = child.describe_exit() if child else "process vanished (liveliness token lost)"
         self._wake(name, Kind.DIED, -1, cause)
 
-    def _wake(self, name: str, kind: Kind, seq: int, cause: str) -> None:
+    def _wake(self, name: str, kind: int, seq: int, cause: str) -> None:
         message = encode_json(kind, seq, -1, 0.0, {"component": name, "cause": cause})
         self._session.put(config.reply_key(self._run_id, name), message)

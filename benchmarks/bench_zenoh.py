@@ -1,0 +1,153 @@
+"""Benchmark of the Zenoh transport against a raw Zenoh round trip, in one run.
+
+(a) raw: put/subscribe round trip of a 100-byte payload between this process
+    and an echo process (peer mode, direct TCP on 127.0.0.1);
+(b) tick: one lockstep exchange (step request, outputs reply) with one trivial
+    component hosted by `ZenohComponents`.
+Both are set up at once and measured in alternating blocks, so that the load
+of other processes on the machine weighs on both alike.
+Prints median and p99 of both and the ratio of the medians (target <= 1.25).
+
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_zenoh.py [--ticks 5000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import zenoh
+
+from cosim.inproc import PythonComponentLaunch
+from cosim.zenoh_transport import ZenohComponents, config
+
+PING, PONG = "bench/raw/ping", "bench/raw/pong"
+
+
+def echo(endpoint: str) -> None:
+    """Echo process: send every ping back as a pong, until an empty ping."""
+    with zenoh.open(config.client_peer_config(endpoint)) as session:
+        pings = session.declare_subscriber(PING)
+        pong = session.declare_publisher(PONG)
+        while True:
+            payload = pings.recv().payload.to_bytes()
+            pong.put(payload)
+            if not payload:
+                return
+
+
+class RawPair:
+    """This process and an echo process, joined peer to peer on 127.0.0.1."""
+
+    def __enter__(self) -> "RawPair":
+        endpoint = config.free_tcp_endpoint()
+        self.session = zenoh.open(config.master_config(endpoint))
+        self.pongs = self.session.declare_subscriber(PONG)
+        self.ping = self.session.declare_publisher(PING)
+        self.child = subprocess.Popen([sys.executable, __file__, "--echo", endpoint],
+                                      env={**os.environ, "PYTHONPATH": _pythonpath()})
+        self.payload = bytes(range(100))
+        while True:  # handshake: retry until the echo answers
+            self.ping.put(self.payload)
+            time.sleep(0.05)
+            if self.pongs.try_recv() is not None:
+                break
+        while self.pongs.try_recv() is not None:
+            pass
+        return self
+
+    def measure(self, count: int) -> list[float]:
+        """Seconds of `count` round trips, one by one."""
+        times, clock = [], time.perf_counter
+        ping, pongs, payload = self.ping, self.pongs, self.payload
+        for _ in range(count):
+            start = clock()
+            ping.put(payload)
+            pongs.recv().payload.to_bytes()
+            times.append(clock() - start)
+        return times
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.ping.put(b"")
+        try:
+            self.child.wait(timeout=10)
+        finally:
+            if self.child.poll() is None:
+                self.child.kill()
+                self.child.wait()
+            self.session.close()
+
+
+class TickLoop:
+    """One trivial component over the transport, stepped tick after tick."""
+
+    def __init__(self, hosted: ZenohComponents) -> None:
+        self.component = hosted.components["echo"]
+        self.component.start(0.0, {"u": 0.0})
+        self.tick, self.value = 0, 0.0
+
+    def measure(self, count: int) -> list[float]:
+        """Seconds of `count` ticks, one by one; checks the echo chain stays exact."""
+        times, clock, step = [], time.perf_counter, self.component.step
+        for _ in range(count):
+            self.tick += 1
+            start = clock()
+            outputs = step(self.tick, self.tick * 0.01, {"u": self.value})
+            times.append(clock() - start)
+            self.value = outputs["y"]
+        if self.value != float(self.tick):
+            raise RuntimeError(f"echo chain at {self.value}, expected {self.tick}")
+        return times
+
+
+def measure_interleaved(count: int, blocks: int) -> tuple[np.ndarray, np.ndarray]:
+    """(raw round trips, ticks) in seconds, measured in alternating blocks so that
+    load from other processes on the machine weighs on both alike."""
+    spec = PythonComponentLaunch("echo", "tests.zenoh_components:Echo", {}, 1)
+    raw: list[float] = []
+    ticks: list[float] = []
+    with RawPair() as pair, ZenohComponents([spec], run_id="bench") as hosted:
+        loop = TickLoop(hosted)
+        pair.measure(200)
+        loop.measure(200)  # warm-up
+        per_block = max(1, count // blocks)
+        for _ in range(blocks):
+            raw += pair.measure(per_block)
+            ticks += loop.measure(per_block)
+        loop.component.stop()
+    return np.array(raw), np.array(ticks)
+
+
+def _pythonpath() -> str:
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH", "")) if p)
+
+
+def _summary(label: str, times: np.ndarray) -> tuple[float, float]:
+    median, p99 = np.median(times) * 1e6, np.percentile(times, 99) * 1e6
+    print(f"{label:<34} median {median:8.1f} us   p99 {p99:8.1f} us   (n={times.size})")
+    return median, p99
+
+
+def main() -> None:
+    """Run both measurements and print them with their ratio."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ticks", type=int, default=5000, help="measured exchanges per case")
+    parser.add_argument("--blocks", type=int, default=20, help="alternations raw/tick")
+    parser.add_argument("--echo", metavar="ENDPOINT", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.echo:
+        echo(args.echo)
+        return
+    raw, tick = measure_interleaved(args.ticks, args.blocks)
+    raw_median, _ = _summary("(a) raw put/sub round trip, 100 B", raw)
+    tick_median, _ = _summary("(b) lockstep tick, 1 component", tick)
+    print(f"ratio tick / raw (medians): {tick_median / raw_median:.2f}  (target <= 1.25)")
+
+
+if __name__ == "__main__":
+    main()

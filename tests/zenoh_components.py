@@ -1,0 +1,89 @@
+"""Small test components for the Zenoh transport tests (importable by the runner).
+
+Each one has state and non-trivial float arithmetic, so that a bit-identical
+comparison with an in-process run means something.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+
+import numpy as np
+
+from cosim.component import Component, ComponentError, Port, Value
+
+
+class Mixer(Component):
+    """Scalar and array inputs and outputs with a running state.
+
+    y = gain * sin(t) * u + state, state += y * 1e-3 + sum(w)
+    z = cumsum(w) * gain + y / 3
+    """
+
+    inputs = (Port("u"), Port("w", size=3))
+    outputs = (Port("y"), Port("z", size=3), Port("count"))
+
+    def __init__(self, gain: float = 1.0, fail_at: float | None = None,
+                 nan_at: float | None = None) -> None:
+        self.gain = float(gain)
+        self.fail_at = fail_at
+        self.nan_at = nan_at
+        self.state = 0.1
+        self.count = 0
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        if self.fail_at is not None and t >= self.fail_at:
+            raise ZeroDivisionError(f"mixer cannot divide at t={t}")
+        w = np.asarray(inputs["w"])
+        y = self.gain * math.sin(t) * inputs["u"] + self.state
+        self.state += y * 1e-3 + float(w.sum())
+        self.count += 1
+        z = np.cumsum(w) * self.gain + y / 3.0
+        if self.nan_at is not None and t >= self.nan_at:
+            z[1] = math.nan
+        return {"y": y, "z": z, "count": float(self.count)}
+
+    def finish(self) -> dict[str, float]:
+        return {"steps": float(self.count), "state": self.state}
+
+
+class Echo(Component):
+    """Outputs its input plus one: the trivial component of the benchmark."""
+
+    inputs = (Port("u"),)
+    outputs = (Port("y"),)
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        return {"y": inputs["u"] + 1.0}
+
+
+class Sleeper(Component):
+    """Sleeps `seconds` in every step after `after` (s): a component that hangs."""
+
+    inputs = (Port("u"),)
+    outputs = (Port("y"),)
+
+    def __init__(self, seconds: float = 3600.0, after: float = 0.0) -> None:
+        self.seconds = seconds
+        self.after = after
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        if t > self.after:
+            time.sleep(self.seconds)
+        return {"y": inputs["u"]}
+
+
+class BadParameter(Component):
+    """Rejects a negative `mass` in its constructor."""
+
+    outputs = (Port("y"),)
+
+    def __init__(self, mass: float = 1.0) -> None:
+        if mass < 0:
+            raise ComponentError(f"mass must be positive, got {mass}")
+        self.mass = mass
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        return {"y": self.mass}
