@@ -84,6 +84,16 @@ def test_lateral_acceleration_limited_by_low_friction(fmu_dir):
     assert ay_max >= 0.85 * mu * G, "a large steer should use most of the friction"
 
 
+def test_wheel_lift_never_creates_extra_grip(fmu_dir):
+    # high CG on a narrow track: the inner wheels lift long before mu g
+    mu = 1.2
+    params = {"vx0": 20.0, "h_cg": 1.2, "track_f": 1.2, "track_r": 1.2, "cx": 0.0}
+    res = simulate(fmu_dir, 4.0, params, {"delta": 0.25, "mu": mu})
+    total = np.hypot(res["ax"], res["ay"])
+    assert np.max(total) <= 1.005 * mu * G
+    assert np.max(np.abs(res["ay"])) > 0.5 * G
+
+
 def roll_gradient_analytic():
     """phi / ay = ms e / (k_roll - ms g e) with the default suspension, rad per m/s2."""
     ms, h_cg, h_rc, k_roll = 1300.0, 0.55, 0.1, 88000.0

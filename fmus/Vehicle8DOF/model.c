@@ -100,6 +100,11 @@ static void load_in(const double *v, In *in)
     in->mu = v[VR_mu];
 }
 
+static double clamp(double x, double lo, double hi)
+{
+    return fmin(fmax(x, lo), hi);
+}
+
 /* Quasi-static vertical loads: longitudinal transfer from ax, lateral transfer
    through the roll springs/dampers, the roll centres and the unsprung masses. */
 static void wheel_loads(const Par *p, const State *s, double fz[N_WHEELS])
@@ -110,12 +115,16 @@ static void wheel_loads(const Par *p, const State *s, double fz[N_WHEELS])
                   + p->m_uf * s->ay * p->rw) / p->tf;
     double d_r = ((1.0 - p->roll_split) * m_roll + p->ms * s->ay * p->h_rc * p->lf / p->wb
                   + p->m_ur * s->ay * p->rw) / p->tr;
-    fz[0] = p->fz0[0] - d_long - d_f;
-    fz[1] = p->fz0[1] - d_long + d_f;
-    fz[2] = p->fz0[2] + d_long - d_r;
-    fz[3] = p->fz0[3] + d_long + d_r;
-    for (int i = 0; i < N_WHEELS; ++i)
-        fz[i] = fmax(fz[i], 0.0);
+    /* Limit each transfer to what the axle (and the car) carries: a lifted wheel
+       carries 0 and the total stays m g, so tyre forces never exceed mu m g. */
+    d_long = clamp(d_long, -p->fz0[2], p->fz0[0]);
+    double base_f = p->fz0[0] - d_long, base_r = p->fz0[2] + d_long;
+    d_f = clamp(d_f, -base_f, base_f);
+    d_r = clamp(d_r, -base_r, base_r);
+    fz[0] = base_f - d_f;
+    fz[1] = base_f + d_f;
+    fz[2] = base_r - d_r;
+    fz[3] = base_r + d_r;
 }
 
 /*
@@ -206,12 +215,16 @@ static void wheel_update(const Par *p, const In *in, State *s, Forces *f, double
     }
 }
 
-/* Roll acceleration of the sprung mass about the roll axis. */
-static double roll_accel(const Par *p, const State *s)
+/* Roll of the sprung mass about the roll axis over dt: the spring and damper
+   backward Euler (stable for any k_roll, c_roll, Ix_s), the lateral and gravity
+   moments explicit. */
+static void roll_update(const Par *p, State *s, double dt)
 {
     double moment = p->ms_e * (s->ay * cos(s->phi) + GRAVITY * sin(s->phi))
-                    - p->k_roll * s->phi - p->c_roll * s->phid;
-    return moment / p->ix_s;
+                    - p->k_roll * s->phi;
+    double den = p->ix_s + dt * p->c_roll + dt * dt * p->k_roll;
+    s->phid = (p->ix_s * s->phid + dt * moment) / den;
+    s->phi += dt * s->phid;
 }
 
 /* One internal sub-step of length dt. */
@@ -227,8 +240,7 @@ static void sub_step(const Par *p, const In *in, State *s, double dt)
     s->vx = vx + dt * (s->ax + vy * s->r);
     s->vy = vy + dt * (s->ay - vx * s->r);
     s->r += dt * f.mz / p->iz;
-    s->phid += dt * roll_accel(p, s);
-    s->phi += dt * s->phid;
+    roll_update(p, s, dt);
     double psi_mid = s->psi + 0.5 * dt * s->r;
     double c = cos(psi_mid), sn = sin(psi_mid);
     s->x += dt * (s->vx * c - s->vy * sn);
