@@ -6,6 +6,30 @@ the models are in `cosim.scenario_models` and `cosim.scenario_sources` and are
 re-exported here. `load_scenario` reports every problem of a file at once, each
 as "FILE:LINE: PATH: MESSAGE", in one `ScenarioError`.
 
+The format, by example (every mapping forbids unknown fields):
+
+    name: lane_change                  # required; description: optional
+    duration: 20.0                     # s, a whole number of ticks
+    tick: 0.01                         # s, the master's base step; start_time: 0.0
+    components:                        # names are identifiers
+      vehicle:
+        fmu: Vehicle8DOF               # built-in name, or a .fmu path relative to this file
+        parameters: {vx0: 10.0}
+        uncertainty: {m: {scale: 1.3}} # plant only: value * scale + offset
+        variables: {delta: steerAngle} # foreign FMU: canonical name -> FMU variable
+      controller:
+        python: controllers.backstepping:BacksteppingController
+        period: 0.01                   # s, a whole multiple of tick (default: every tick)
+        parameters: {ls: 5.0}
+    sources:                           # each a component with one output `value`
+      side_wind: {kind: gust, amplitude: 500, start: 2, duration: 1, unit: N}
+      mu_road: {kind: table, over: distance, points: [[0, 1.0], [50, 0.5]]}
+    connections:
+      - vehicle -> controller          # every output feeding the input of the same name
+      - controller.delta -> vehicle.delta
+      - {from: side_wind.value, to: vehicle.wind_fy, delay: 1}
+    record: {include: ["*"], exclude: []}
+
 Example:
     scenario = load_scenario("scenarios/lane_change.yaml",
                              ["components.controller.parameters.ke=2.0", "duration=5"])

@@ -67,7 +67,7 @@ def resolve_wiring(scenario: Any, ports: PortTable,
     kept, twice = _drop_overridden(candidates, scenario.line_of)
     problems += [scenario.problem(("connections", i), m) for i, m in twice]
     for cand in kept:  # short forms are checked after explicit connections took precedence
-        mismatch = None if cand.explicit else _compatibility(cand.edge, ports)
+        mismatch = None if cand.explicit else _compatibility(cand.edge, ports, short=True)
         if mismatch:
             text = f"{scenario.connections[cand.index].src} -> {scenario.connections[cand.index].dst}"
             problems.append(scenario.problem(("connections", cand.index), f"{text}: {mismatch}"))
@@ -143,15 +143,20 @@ def _port_problem(component: str, port: str, side: str, ports: PortTable,
             f"{', '.join(names) or 'none'}")
 
 
-def _compatibility(edge: Edge, ports: PortTable) -> str | None:
-    """A size or unit mismatch between the two ends of an edge, or None."""
+def _compatibility(edge: Edge, ports: PortTable, short: bool = False) -> str | None:
+    """A size or unit mismatch between the two ends of an edge, or None.
+
+    Args:
+        edge: the edge; ports: the port table.
+        short: the edge comes from a short form, so the message names its ports.
+    """
     out = next(p for p in ports[edge.src][1] if p.name == edge.src_port)
     inp = next(p for p in ports[edge.dst][0] if p.name == edge.dst_port)
-    ends = f"{edge.src}.{edge.src_port} -> {edge.dst}.{edge.dst_port}"
+    ends = f" on {edge.src}.{edge.src_port} -> {edge.dst}.{edge.dst_port}" if short else ""
     if out.size != inp.size:
-        return f"size mismatch on {ends}: output has {out.size} values, input takes {inp.size}"
+        return f"size mismatch{ends}: output has {out.size} values, input takes {inp.size}"
     if out.unit and inp.unit and out.unit != inp.unit:
-        return f"unit mismatch on {ends}: output in {out.unit!r}, input in {inp.unit!r}"
+        return f"unit mismatch{ends}: output in {out.unit!r}, input in {inp.unit!r}"
     return None
 
 

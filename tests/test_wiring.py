@@ -109,10 +109,10 @@ def test_wrong_causality_on_either_side(tmp_path: Path) -> None:
 def test_size_and_unit_mismatch(tmp_path: Path) -> None:
     assert wiring_problems(tmp_path, "planner.ref_x -> vehicle.delta",
                            "vehicle.vx -> controller.x") == [
-        "11: connections[0]: planner.ref_x -> vehicle.delta: size mismatch on planner.ref_x -> "
-        "vehicle.delta: output has 4 values, input takes 1",
-        "12: connections[1]: vehicle.vx -> controller.x: unit mismatch on vehicle.vx -> "
-        "controller.x: output in 'm/s', input in 'm'",
+        "11: connections[0]: planner.ref_x -> vehicle.delta: size mismatch: output has 4 "
+        "values, input takes 1",
+        "12: connections[1]: vehicle.vx -> controller.x: unit mismatch: output in 'm/s', "
+        "input in 'm'",
     ]
 
 
