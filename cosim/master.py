@@ -12,13 +12,16 @@ a wrong size or a non-finite value stops the run with a `ComponentFailure`
 naming the component, the tick, the signal and the value.
 
 Observers (recorder, progress bar, live publisher, real-time pacer) see the
-buffer after every tick; they must not modify it.
+signal store (`values` list of scalars, `arrays` numpy buffer, indexed by
+`master.layout`) after every tick; they must not modify it.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from math import isfinite as _isfinite
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from operator import itemgetter
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -36,8 +39,8 @@ class Observer(Protocol):
     def begin(self, master: "Master") -> None:
         """Called once before the initialization phase."""
 
-    def after_tick(self, tick: int, t: float, buffer: np.ndarray) -> None:
-        """Called after tick `tick` (0 = after initialization); read-only buffer."""
+    def after_tick(self, tick: int, t: float, values: list[float], arrays: np.ndarray) -> None:
+        """Called after tick `tick` (0 = after initialization); read-only store."""
 
 
 @dataclass
@@ -48,8 +51,16 @@ class _Plan:
     hosted: HostedComponent
     period: int
     slots: ComponentSlots
-    in_index: np.ndarray
-    out_index: list[int]
+    pick_inputs: Callable[[Any], tuple]   # values list -> scalar inputs in name order
+    pick_outputs: Callable[[Any], tuple]  # outputs mapping -> scalar outputs in slot order
+    out_start: int
+    out_stop: int
+
+    def __post_init__(self) -> None:
+        self.step = self.hosted.step
+        self.in_names = self.slots.in_scalar_names
+        self.has_array_inputs = bool(self.slots.in_arrays)
+        self.has_array_outputs = bool(self.slots.out_arrays)
 
 
 class Master:
@@ -80,10 +91,17 @@ class Master:
         feedthrough = {n: bool(getattr(c, "direct_feedthrough", True))
                        for n, c in self.components.items()}
         self.order = step_order(list(self.components), feedthrough, edges)
-        self.buffer = self.layout.initial.copy()
+        self.values: list[float] = list(self.layout.initial_values)
+        self.arrays: np.ndarray = self.layout.initial_arrays.copy()
+        # read-only array objects by offset in `arrays`, handed to readers without a
+        # copy: a new object is made each time the owner writes, never mutated
+        self._frozen: dict[int, np.ndarray] = {}
         self.ticks_done = -1  # last completed tick; -1 before initialization
         self._plans = [self._plan(name) for name in self.order]
-        self._has_delays = self.layout.delay_src.size > 0
+        self._scalar_delays = self.layout.scalar_delays
+        self._array_delays = self.layout.array_delays
+        self._has_delays = bool(self._scalar_delays or self._array_delays)
+        self._due = _due_table(self._plans)
         self._started: list[str] = []  # components whose start was called, to stop
 
     def _plan(self, name: str) -> _Plan:
@@ -92,9 +110,17 @@ class Master:
         if period < 1:
             raise ValueError(f"component {name!r}: period_ticks must be >= 1, got {period}")
         slots = self.layout.slots[name]
-        return _Plan(name, comp, period, slots,
-                     np.array(slots.in_scalar_index, dtype=np.intp),
-                     list(slots.out_scalar_index))
+        start = slots.out_scalar_start
+        return _Plan(name, comp, period, slots, _picker(slots.in_scalar_index),
+                     _picker(slots.out_scalar_names), start,
+                     start + len(slots.out_scalar_names))
+
+    def value(self, component: str, signal: str) -> Any:
+        """Current value of an output signal (float, or a copy of the array)."""
+        offset, size = self.layout.outputs[(component, signal)]
+        if size == 1:
+            return self.values[offset]
+        return self.arrays[offset:offset + size].copy()
 
     def time_of(self, tick: int) -> float:
         """t = t0 + tick * h, computed from the integer tick."""
@@ -120,54 +146,85 @@ class Master:
         self._finish_tick(0, t0)
 
     def step_tick(self, k: int) -> None:
-        """Run tick k: refresh delayed inputs, step the due components in order."""
+        """Run tick k: refresh delayed inputs, step the due components in order.
+
+        This is the hot loop: gather and the scalar part of scatter are inlined.
+        """
         t = self.t0 + k * self.tick
-        buf = self.buffer
         if self._has_delays:
-            buf[self.layout.delay_dst] = buf[self.layout.delay_src]
-        for plan in self._plans:
-            if k % plan.period:
-                continue
-            inputs = self._gather(plan)
+            self._refresh_delays()
+        values = self.values
+        due = self._due
+        plans = (due[k % len(due)] if due is not None
+                 else [p for p in self._plans if k % p.period == 0])
+        for plan in plans:
+            inputs = dict(zip(plan.in_names, plan.pick_inputs(values)))
+            if plan.has_array_inputs:
+                self._gather_arrays(plan, inputs)
             if self.trace is not None:
                 self.trace.append((k, plan.name, _copy_inputs(inputs)))
-            self._scatter(plan, plan.hosted.step(k, t, inputs), k, t)
-        self._finish_tick(k, t)
+            outputs = plan.step(k, t, inputs)
+            try:
+                new = list(map(float, plan.pick_outputs(outputs)))
+            except Exception:  # missing name, not a mapping, not a number: diagnose
+                raise _diagnose(plan, outputs, k, t) from None
+            if not all(map(_isfinite, new)):
+                raise _diagnose(plan, outputs, k, t)
+            values[plan.out_start:plan.out_stop] = new
+            if plan.has_array_outputs:
+                self._scatter_arrays(plan, outputs, k, t)
+        self.ticks_done = k
+        for observer in self.observers:
+            observer.after_tick(k, t, values, self.arrays)
+
+    def _refresh_delays(self) -> None:
+        values, arrays = self.values, self.arrays
+        for src, dst in self._scalar_delays:
+            values[dst] = values[src]
+        for src, dst, size in self._array_delays:
+            arrays[dst:dst + size] = arrays[src:src + size]
+            self._frozen.pop(dst, None)
 
     def _finish_tick(self, k: int, t: float) -> None:
         self.ticks_done = k
         for observer in self.observers:
-            observer.after_tick(k, t, self.buffer)
+            observer.after_tick(k, t, self.values, self.arrays)
 
     def _gather(self, plan: _Plan) -> dict[str, Any]:
         """The inputs of one component as a fresh mapping (floats, read-only arrays)."""
-        buf = self.buffer
-        slots = plan.slots
-        inputs: dict[str, Any] = dict(zip(slots.in_scalar_names, buf[plan.in_index].tolist()))
-        for name, off, size in slots.in_arrays:
-            value = buf[off:off + size].copy()
-            value.flags.writeable = False
-            inputs[name] = value
+        inputs: dict[str, Any] = dict(zip(plan.in_names, plan.pick_inputs(self.values)))
+        self._gather_arrays(plan, inputs)
         return inputs
 
+    def _gather_arrays(self, plan: _Plan, inputs: dict[str, Any]) -> None:
+        frozen = self._frozen
+        for name, off, size in plan.slots.in_arrays:
+            value = frozen.get(off)
+            if value is None:  # a default or delay slot nobody has written yet
+                value = frozen[off] = _freeze(self.arrays[off:off + size])
+            inputs[name] = value
+
     def _scatter(self, plan: _Plan, outputs: Any, k: int | None, t: float) -> None:
-        """Check a component's outputs and write them into the buffer."""
-        slots = plan.slots
+        """Check a component's outputs and write them into the store."""
         try:
-            values = [float(outputs[n]) for n in slots.out_scalar_names]
+            values = list(map(float, plan.pick_outputs(outputs)))
         except Exception:  # missing name, not a mapping, not a number: diagnose
             raise _diagnose(plan, outputs, k, t) from None
-        if not all(map(math.isfinite, values)):
+        if not all(map(_isfinite, values)):
             raise _diagnose(plan, outputs, k, t)
-        buf = self.buffer
-        for index, value in zip(plan.out_index, values):
-            buf[index] = value
-        for name, off, size in slots.out_arrays:
-            value = outputs.get(name) if isinstance(outputs, Mapping) else None
-            array = np.asarray(value, dtype=np.float64) if value is not None else None
-            if array is None or array.shape != (size,) or not np.isfinite(array).all():
+        self.values[plan.out_start:plan.out_stop] = values
+        self._scatter_arrays(plan, outputs, k, t)
+
+    def _scatter_arrays(self, plan: _Plan, outputs: Any, k: int | None, t: float) -> None:
+        for name, off, size in plan.slots.out_arrays:
+            try:
+                array = _freeze(outputs[name])
+            except Exception:
+                raise _diagnose(plan, outputs, k, t) from None
+            if array.shape != (size,) or not np.isfinite(array).all():
                 raise _diagnose(plan, outputs, k, t)
-            buf[off:off + size] = array
+            self.arrays[off:off + size] = array
+            self._frozen[off] = array
 
     def stop_all(self) -> tuple[dict[str, dict[str, float]], list[str]]:
         """Stop every started component (reverse step order), even after a failure.
@@ -187,6 +244,34 @@ class Master:
                 errors.append(str(exc) if isinstance(exc, ComponentFailure)
                               else f"component {plan.name!r}: stop failed: {exc}")
         return metrics, errors
+
+
+def _due_table(plans: Sequence[_Plan], limit: int = 4096) -> list[list[_Plan]] | None:
+    """Plans due at each tick residue modulo the periods' lcm (in step order).
+
+    None when the lcm exceeds `limit` (the loop then filters by period each tick).
+    """
+    cycle = math.lcm(*(p.period for p in plans)) if plans else 1
+    if cycle > limit:
+        return None
+    return [[p for p in plans if r % p.period == 0] for r in range(cycle)]
+
+
+def _picker(keys: Sequence[Any]) -> Callable[[Any], tuple]:
+    """A C-speed getter of several keys as a tuple (itemgetter, also for 0 and 1 keys)."""
+    if not keys:
+        return lambda _: ()
+    if len(keys) == 1:
+        key = keys[0]
+        return lambda container: (container[key],)
+    return itemgetter(*keys)
+
+
+def _freeze(value: Any) -> np.ndarray:
+    """A read-only float64 copy of `value`."""
+    array = np.array(value, dtype=np.float64)
+    array.flags.writeable = False
+    return array
 
 
 def _copy_inputs(inputs: Mapping[str, Any]) -> dict[str, Any]:

@@ -37,7 +37,7 @@ class RealtimePacer:
         """Take the wall-clock origin (the initialization phase is not paced)."""
         self._t0 = master.t0
 
-    def after_tick(self, tick: int, t: float, buffer: np.ndarray) -> None:
+    def after_tick(self, tick: int, t: float, values: list[float], arrays: np.ndarray) -> None:
         """Sleep until this tick's wall-clock deadline; record how late it was."""
         now = time.perf_counter()
         if tick == 0:

@@ -40,7 +40,7 @@ class ProgressBar:
         self._progress.start()
         self._task = self._progress.add_task("run", total=self.total_ticks, t=master.t0)
 
-    def after_tick(self, tick: int, t: float, buffer: np.ndarray) -> None:
+    def after_tick(self, tick: int, t: float, values: list[float], arrays: np.ndarray) -> None:
         """Redraw when 0.1 s of wall time has passed or the run is complete."""
         now = time.monotonic()
         if self._progress is not None and (now - self._last >= 0.1 or tick == self.total_ticks):

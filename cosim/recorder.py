@@ -15,6 +15,7 @@ from __future__ import annotations
 import fnmatch
 import json
 import math
+import operator
 import os
 import time
 from collections.abc import Sequence
@@ -64,7 +65,7 @@ class Recorder:
         self.include, self.exclude = list(include), list(exclude)
         self.flush_interval = flush_interval
         self.columns: list[str] = []
-        self._index = np.zeros(0, dtype=np.intp)
+        self._pick: Any = lambda values: ()
         self._signals: IO[str] | None = None
         self._pending: list[str] = []
         self._arrays: list[_ArrayFile] = []
@@ -83,7 +84,9 @@ class Recorder:
         chosen = [(n, i) for n, i in layout.scalar_columns()
                   if selected(n, self.include, self.exclude)]
         self.columns = [n for n, _ in chosen]
-        self._index = np.array([i for _, i in chosen], dtype=np.intp)
+        index = [i for _, i in chosen]
+        self._pick = (lambda values: [values[i] for i in index]) if len(index) < 2 \
+            else operator.itemgetter(*index)
         self._signals = open(self.signals_path, "w", encoding="ascii", newline="\n")
         self._signals.write(",".join(["time"] + self.columns) + "\n")
         self._signals.flush()
@@ -95,14 +98,14 @@ class Recorder:
                 self._arrays.append(_ArrayFile(self.out_dir / ARRAYS_DIR / f"{name}.csv",
                                                name, offset, size, period))
 
-    def after_tick(self, tick: int, t: float, buffer: np.ndarray) -> None:
+    def after_tick(self, tick: int, t: float, values: list[float], arrays: np.ndarray) -> None:
         """Queue the row of this tick; flush when the interval has passed."""
         stamp = repr(t)
-        self._pending.append(",".join([stamp, *map(repr, buffer[self._index].tolist())]) + "\n")
+        self._pending.append(",".join([stamp, *map(repr, self._pick(values))]) + "\n")
         for array in self._arrays:
             if tick % array.period == 0:
-                values = buffer[array.offset:array.offset + array.size].tolist()
-                array.pending.append(",".join([stamp, *map(repr, values)]) + "\n")
+                row = arrays[array.offset:array.offset + array.size].tolist()
+                array.pending.append(",".join([stamp, *map(repr, row)]) + "\n")
         self.rows += 1
         if time.monotonic() - self._last_flush >= self.flush_interval:
             self.flush()

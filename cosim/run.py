@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from cosim.errors import UserError
 from cosim.fmu_component import FmuComponent
 from cosim.inproc import InprocComponent, PythonComponentLaunch, import_component_class
@@ -198,8 +200,9 @@ class _LivePublisher:
         self.names = [n for n, _ in columns]
         self.index = [i for _, i in columns]
 
-    def after_tick(self, tick: int, t: float, buffer: Any) -> None:
-        self.transport.publish(tick, t, self.names, buffer[self.index])
+    def after_tick(self, tick: int, t: float, values: list[float], arrays: Any) -> None:
+        self.transport.publish(tick, t, self.names,
+                               np.array([values[i] for i in self.index], dtype=np.float64))
 
 
 def _execute(prepared: PreparedRun, hosted: dict[str, Any], publisher: Any, out: Path,

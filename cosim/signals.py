@@ -1,11 +1,16 @@
-"""The master's flat signal buffer and the precomputed gather/scatter indices.
+"""The master's signal store and the gather/scatter indices computed once.
 
-Every output port of every component owns a slot range in one float64 array.
-Inputs are read from that array through indices computed once: a connected
-input reads its source's slots, an unconnected input reads extra slots that hold
-its default, and an input on a `delay: 1` edge reads slots that the master
-refreshes from the source at the start of every tick (the value as of the end
-of the previous tick).
+Scalar signals live in one Python list of floats (`values`): indexing a list
+is several times cheaper than indexing a numpy array element by element, and
+the master moves scalars one by one. Array signals live in one float64 numpy
+array (`arrays`). Every output port owns slots there, and a component's scalar
+outputs are contiguous so they are written with one slice assignment.
+
+Inputs read through indices computed once: a connected input reads its
+source's slots; an unconnected input reads extra slots holding its default;
+an input on a `delay: 1` edge reads extra slots that the master refreshes from
+the source at the start of every tick (the value at the end of the previous
+tick).
 """
 
 from __future__ import annotations
@@ -22,101 +27,114 @@ from cosim.schedule import wiring_error
 
 @dataclass
 class ComponentSlots:
-    """Where one component's inputs come from and its outputs go, in the buffer.
+    """Where one component's inputs come from and its outputs go.
 
-    Scalar ports use single indices, array ports (offset, size) ranges.
+    Attributes:
+        in_scalar_names / in_scalar_index: scalar inputs and their `values` slots.
+        in_arrays: (name, offset, size) of array inputs in `arrays`.
+        out_scalar_names: scalar outputs, in slot order from out_scalar_start.
+        out_arrays: (name, offset, size) of array outputs in `arrays`.
     """
 
     in_scalar_names: list[str] = field(default_factory=list)
     in_scalar_index: list[int] = field(default_factory=list)
     in_arrays: list[tuple[str, int, int]] = field(default_factory=list)
     out_scalar_names: list[str] = field(default_factory=list)
-    out_scalar_index: list[int] = field(default_factory=list)
+    out_scalar_start: int = 0
     out_arrays: list[tuple[str, int, int]] = field(default_factory=list)
 
 
 @dataclass
 class SignalLayout:
-    """The whole buffer: output slots, default slots, delay slots.
+    """The whole store: output slots, default slots, delay slots.
 
     Attributes:
-        outputs: (component, port) -> (offset, size) of every output port.
+        outputs: (component, port) -> (offset, size); offset indexes `values`
+            when size == 1, `arrays` otherwise.
         ports: (component, port) -> the output Port declaration.
-        initial: the buffer's initial content (defaults in place).
+        initial_values / initial_arrays: initial content (defaults in place).
         slots: component name -> its ComponentSlots.
-        delay_src / delay_dst: index arrays; at each tick start the master
-            copies buffer[delay_src] into buffer[delay_dst].
+        scalar_delays / array_delays: (src, dst) slot pairs (arrays: ranges as
+            (src_offset, dst_offset, size)) the master copies at each tick start.
     """
 
     outputs: dict[tuple[str, str], tuple[int, int]]
     ports: dict[tuple[str, str], Port]
-    initial: np.ndarray
+    initial_values: list[float]
+    initial_arrays: np.ndarray
     slots: dict[str, ComponentSlots]
-    delay_src: np.ndarray
-    delay_dst: np.ndarray
+    scalar_delays: list[tuple[int, int]]
+    array_delays: list[tuple[int, int, int]]
 
     def scalar_columns(self) -> list[tuple[str, int]]:
-        """("component.signal", index) of every scalar output, in buffer order."""
+        """("component.signal", index in values) of every scalar output."""
         return [(f"{c}.{p}", off) for (c, p), (off, size) in self.outputs.items() if size == 1]
 
     def array_signals(self) -> list[tuple[str, str, int, int]]:
-        """(component, signal, offset, size) of every array output."""
+        """(component, signal, offset in arrays, size) of every array output."""
         return [(c, p, off, size) for (c, p), (off, size) in self.outputs.items() if size > 1]
 
 
-class _Allocator:
-    """Hands out consecutive slot ranges and records their initial values."""
+class _Store:
+    """Hands out scalar and array slots and records their initial values."""
 
     def __init__(self) -> None:
         self.values: list[float] = []
+        self.arrays: list[float] = []
 
-    def take(self, size: int, value: float) -> int:
-        offset = len(self.values)
-        self.values.extend([float(value)] * size)
+    def take(self, port: Port) -> int:
+        if port.size == 1:
+            self.values.append(float(port.default))
+            return len(self.values) - 1
+        offset = len(self.arrays)
+        self.arrays.extend([float(port.default)] * port.size)
         return offset
 
 
 def build_layout(components: Mapping[str, Any], edges: Iterable[Any]) -> SignalLayout:
-    """Allocate the buffer for hosted components and resolved edges.
+    """Allocate the store for hosted components and resolved edges.
 
     Args:
         components: name -> object with `inputs` and `outputs` (tuples of Port),
             in declaration order.
         edges: resolved connections (src, src_port, dst, dst_port, delay).
     Raises:
-        WiringError for an edge naming an unknown port, an input fed twice or a
-        size mismatch between the two ends.
+        WiringError for an edge naming an unknown port, an input fed twice,
+        a size mismatch between the two ends or a delay other than 0 and 1.
     """
-    alloc = _Allocator()
+    store = _Store()
     outputs: dict[tuple[str, str], tuple[int, int]] = {}
     ports: dict[tuple[str, str], Port] = {}
+    slots = {name: ComponentSlots() for name in components}
     for name, comp in components.items():
+        slots[name].out_scalar_start = len(store.values)
+        for port in (p for p in comp.outputs if p.size == 1):  # contiguous scalars
+            outputs[(name, port.name)] = (store.take(port), 1)
         for port in comp.outputs:
-            outputs[(name, port.name)] = (alloc.take(port.size, port.default), port.size)
+            if port.size > 1:
+                outputs[(name, port.name)] = (store.take(port), port.size)
             ports[(name, port.name)] = port
+            _add_output(slots[name], port, outputs[(name, port.name)][0])
     feeds = _index_edges(components, edges, outputs)
-    delay_src: list[int] = []
-    delay_dst: list[int] = []
-    slots: dict[str, ComponentSlots] = {}
+    scalar_delays: list[tuple[int, int]] = []
+    array_delays: list[tuple[int, int, int]] = []
     for name, comp in components.items():
-        slot = ComponentSlots()
         for port in comp.inputs:
             edge = feeds.get((name, port.name))
             if edge is None:
-                offset = alloc.take(port.size, port.default)
+                offset = store.take(port)
             elif edge.delay:
-                src_off = outputs[(edge.src, edge.src_port)][0]
-                offset = alloc.take(port.size, port.default)
-                delay_src.extend(range(src_off, src_off + port.size))
-                delay_dst.extend(range(offset, offset + port.size))
+                src = outputs[(edge.src, edge.src_port)][0]
+                offset = store.take(port)
+                if port.size == 1:
+                    scalar_delays.append((src, offset))
+                else:
+                    array_delays.append((src, offset, port.size))
             else:
                 offset = outputs[(edge.src, edge.src_port)][0]
-            _add_input(slot, port, offset)
-        for port in comp.outputs:
-            _add_output(slot, port, outputs[(name, port.name)][0])
-        slots[name] = slot
-    return SignalLayout(outputs, ports, np.array(alloc.values, dtype=np.float64), slots,
-                        np.array(delay_src, dtype=np.intp), np.array(delay_dst, dtype=np.intp))
+            _add_input(slots[name], port, offset)
+    return SignalLayout(outputs, ports, store.values, np.array(store.arrays, dtype=np.float64),
+                        slots, scalar_delays, array_delays)
 
 
 def _index_edges(components: Mapping[str, Any], edges: Iterable[Any],
@@ -137,7 +155,7 @@ def _index_edges(components: Mapping[str, Any], edges: Iterable[Any],
         src_size = outputs[(edge.src, edge.src_port)][1]
         if src_size != dst_ports[edge.dst_port].size:
             raise wiring_error(f"{where}: size {src_size} does not match size "
-                              f"{dst_ports[edge.dst_port].size}")
+                               f"{dst_ports[edge.dst_port].size}")
         if edge.delay not in (0, 1):
             raise wiring_error(f"{where}: delay must be 0 or 1, got {edge.delay!r}")
         feeds[(edge.dst, edge.dst_port)] = edge
@@ -155,6 +173,5 @@ def _add_input(slot: ComponentSlots, port: Port, offset: int) -> None:
 def _add_output(slot: ComponentSlots, port: Port, offset: int) -> None:
     if port.size == 1:
         slot.out_scalar_names.append(port.name)
-        slot.out_scalar_index.append(offset)
     else:
         slot.out_arrays.append((port.name, offset, port.size))

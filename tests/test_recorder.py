@@ -41,7 +41,7 @@ class Echo(Component):
 
 
 class Snapshots:
-    """Observer keeping a copy of the buffer after every tick."""
+    """Observer keeping a copy of the signal store after every tick."""
 
     def __init__(self):
         self.rows = []
@@ -49,8 +49,8 @@ class Snapshots:
     def begin(self, master):
         self.master = master
 
-    def after_tick(self, tick, t, buffer):
-        self.rows.append((t, buffer.copy()))
+    def after_tick(self, tick, t, values, arrays):
+        self.rows.append((t, list(values), arrays.copy()))
 
 
 def _comp(name, cls, period=1, **params):
@@ -81,8 +81,8 @@ def test_round_trip_is_bit_identical(tmp_path):
     assert names == ["time", "noisy.u", "noisy.v", "echo.e"]
     assert data.shape == (21, 4)
     out = master.layout.outputs
-    expected = np.array([[t, b[out[("noisy", "u")][0]], b[out[("noisy", "v")][0]],
-                          b[out[("echo", "e")][0]]] for t, b in snaps.rows])
+    expected = np.array([[t, v[out[("noisy", "u")][0]], v[out[("noisy", "v")][0]],
+                          v[out[("echo", "e")][0]]] for t, v, _ in snaps.rows])
     assert data.tobytes() == expected.tobytes()  # bit-identical, -0.0 and 1e-300 included
     v = data[:, 2]
     assert np.any(np.signbit(v) & (v == 0.0)) and np.any((v != 0.0) & (np.abs(v) < 1e-299))
@@ -107,7 +107,7 @@ def test_array_files_one_row_per_step(tmp_path):
     assert np.array_equal(echo_h[:, 0], echo_h[:, 1])
     _, noisy_w = read_signals(tmp_path / "arrays" / "noisy.w.csv")
     off = master.layout.outputs[("noisy", "w")][0]
-    assert noisy_w[:, 1:].tobytes() == np.array([b[off:off + 3] for _, b in snaps.rows]).tobytes()
+    assert noisy_w[:, 1:].tobytes() == np.array([a[off:off + 3] for _, _, a in snaps.rows]).tobytes()
 
 
 def test_include_exclude_globs(tmp_path):
@@ -135,7 +135,7 @@ def test_rows_reach_the_disk_as_they_go(tmp_path):
         def begin(self, master):
             pass
 
-        def after_tick(self, tick, t, buffer):
+        def after_tick(self, tick, t, values, arrays):
             with open(tmp_path / "signals.csv") as handle:
                 seen.append(len(handle.readlines()) - 1)
 
