@@ -7,7 +7,8 @@
  * this file. In short: fixed internal sub-steps (<= dt_max and inside the
  * explicit stability limit of the regularised tyre damping), a linearly
  * implicit wheel-spin update with a Coulomb brake that can hold a wheel at
- * exactly zero, and symplectic Euler for the body and the roll motion.
+ * exactly zero, symplectic Euler for the body, backward Euler for the roll
+ * spring and damper.
  */
 #include <math.h>
 #include <stddef.h>
