@@ -137,26 +137,29 @@ def _build(node: yaml.Node, path: PathKey, lines: LineMap,
 
 
 def _build_mapping(node: yaml.MappingNode, path: PathKey, lines: LineMap,
-                   problems: list[Problem], loader: _Loader) -> dict[Any, Any]:
-    """Construct a dict from a mapping node; report duplicate and non-scalar keys."""
+                   problems: list[Problem], loader: _Loader) -> dict[str, Any]:
+    """Construct a dict from a mapping node; report duplicate and non-scalar keys.
+
+    Keys are always strings: a key YAML reads as another type keeps its text.
+    """
     explicit = {id(k) for k, _ in node.value if k.tag != "tag:yaml.org,2002:merge"}
     loader.flatten_mapping(node)  # resolves "<<" merge keys: merged entries come first
-    result: dict[Any, Any] = {}
-    first_line: dict[Any, int] = {}
+    result: dict[str, Any] = {}
+    first_line: dict[str, int] = {}
     for key_node, value_node in node.value:
         line = key_node.start_mark.line + 1
         if not isinstance(key_node, yaml.ScalarNode):
             problems.append(Problem(format_path(path), line, "a key must be a plain value"))
             continue
         key = loader.construct_object(key_node)
-        if not isinstance(key, (str, int, float, bool)) and key is not None:
-            key = str(key)
+        if not isinstance(key, str):
+            key = key_node.value  # keys are names: 1, true, null stay as written ("1", "true")
         if key in first_line and id(key_node) in explicit:
             problems.append(Problem(format_path(path + (str(key),)), line,
                                     f"duplicate key {key!r} (first at line {first_line[key]})"))
         if id(key_node) in explicit:
             first_line.setdefault(key, line)
-        child = path + (key if isinstance(key, str) else str(key),)
+        child = path + (key,)
         lines.lines[child] = line
         result[key] = _build(value_node, child, lines, problems, loader)
     return result

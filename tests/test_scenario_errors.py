@@ -30,6 +30,19 @@ def test_missing_file(tmp_path: Path) -> None:
     assert str(info.value) == f"{tmp_path / 'nope.yaml'}: scenario file not found"
 
 
+def test_undecodable_file(tmp_path: Path) -> None:
+    path = tmp_path / "latin.yaml"
+    path.write_bytes(b"name: caf\xe9\n")
+    with pytest.raises(ScenarioError, match=r"latin\.yaml: cannot read the file: 'utf-8' codec"):
+        load_scenario(path)
+
+
+def test_numeric_component_name(tmp_path: Path) -> None:
+    assert problems(tmp_path, GOOD_HEAD + "  1: {python: x:Y}\n  true: {python: x:Y}\n") == [
+        ":5: components.1: name '1' is not an identifier (letters, digits, _; not starting "
+        "with a digit)"]
+
+
 def test_yaml_syntax_error_names_the_line(tmp_path: Path) -> None:
     got = problems(tmp_path, GOOD_HEAD + "  a: {python: x:Y\n  b: 1\n")
     assert len(got) == 1 and got[0].startswith(":6: YAML syntax error: expected ',' or '}'")

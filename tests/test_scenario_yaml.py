@@ -94,3 +94,10 @@ def test_format_path() -> None:
     assert format_path(("connections", 2, "to")) == "connections[2].to"
     assert format_path(("components", "vehicle", "period")) == "components.vehicle.period"
     assert format_path(()) == ""
+
+
+def test_keys_are_kept_as_written_text() -> None:
+    data, lines, problems = load_yaml("1: a\ntrue: b\nnull: c\n1.5: d\n")
+    assert problems == []  # 1 and true would collide as Python keys (True == 1)
+    assert data == {"1": "a", "true": "b", "null": "c", "1.5": "d"}
+    assert lines.line_of(("true",)) == 2
