@@ -259,6 +259,30 @@ def comfort_from_spec(spec, where: str) -> Comfort:
                       for k in names if k in spec})
 
 
+def _lane_changes(road: Road, d_lane: float, spec, v_design: float, comfort: Comfort,
+                  where: str) -> tuple[Transition, ...]:
+    """Transitions of a lane_change spec: one {at, to_lane|to_offset, length} or a `changes` list."""
+    items = spec["changes"] if "changes" in spec else [{k: v for k, v in spec.items()
+                                                        if k in ("at", "to_lane", "to_offset", "length")}]
+    if "changes" in spec and (set(spec) & {"at", "to_lane", "to_offset", "length"}):
+        raise SpecError(f"{where}: give either changes or at/to_lane, not both")
+    if not isinstance(items, Sequence) or isinstance(items, str) or not items:
+        raise SpecError(f"{where}.changes: expected a non-empty list of {{at, to_lane, length}}")
+    out, d = [], d_lane
+    for i, item in enumerate(items):
+        w = f"{where}.changes[{i}]" if "changes" in spec else where
+        if not isinstance(item, Mapping) or "at" not in item or len({"to_lane", "to_offset"} & set(item)) != 1 \
+                or set(item) - {"at", "to_lane", "to_offset", "length"}:
+            raise SpecError(f"{w}: expected at, one of to_lane / to_offset, and optionally length; got {item!r}")
+        target = (road.lane_offset(road.check_lane(item["to_lane"], w + ".to_lane")) if "to_lane" in item
+                  else spec_number(item["to_offset"], w + ".to_offset"))
+        length = (spec_number(item["length"], w + ".length", positive=True) if "length" in item
+                  else transition_length(target - d, v_design, comfort))
+        out.append(Transition(spec_number(item["at"], w + ".at"), length, d, target))
+        d = target
+    return tuple(out)
+
+
 def plan_manoeuvre(road: Road, lane: int, spec, v_design: float, where: str = "manoeuvre") -> ManoeuvrePlan:
     """Parse a manoeuvre spec and plan its two options.
 
@@ -266,10 +290,12 @@ def plan_manoeuvre(road: Road, lane: int, spec, v_design: float, where: str = "m
         road: the road.
         lane: the ego lane at the start.
         spec: None or {type: lane_keeping | lane_change | obstacle_avoidance, ...}
-            with lane_change: at (m), to_lane, length (optional, m);
-            obstacle_avoidance: obstacles: [{s, lane, length, width, offset}];
-            and any Comfort field (a_lat, j_lat, min_length, margin, gap,
-            vehicle_width, vehicle_length).
+            with lane_change: at (m), to_lane (or to_offset, m from the
+            reference line), length (optional, m), or a list
+            changes: [{at, to_lane | to_offset, length}, ...] (e.g. a double
+            lane change); obstacle_avoidance: obstacles: [{s, lane, length,
+            width, offset}]; and any Comfort field (a_lat, j_lat, min_length,
+            margin, gap, vehicle_width, vehicle_length).
         v_design: speed used for transition lengths, m/s.
         where: location of the spec, for error messages.
     """
@@ -277,7 +303,7 @@ def plan_manoeuvre(road: Road, lane: int, spec, v_design: float, where: str = "m
     if not isinstance(spec, Mapping) or "type" not in spec:
         raise SpecError(f"{where}: expected a mapping with a type, got {spec!r}")
     kind = spec["type"]
-    own = {"lane_keeping": set(), "lane_change": {"at", "to_lane", "length"},
+    own = {"lane_keeping": set(), "lane_change": {"at", "to_lane", "to_offset", "length", "changes"},
            "obstacle_avoidance": {"obstacles"}}
     if kind not in own:
         raise SpecError(f"{where}.type: unknown manoeuvre {kind!r} (known: {', '.join(own)})")
@@ -291,13 +317,9 @@ def plan_manoeuvre(road: Road, lane: int, spec, v_design: float, where: str = "m
     if kind == "lane_keeping":
         return ManoeuvrePlan(kind, keep, None, _neighbour(road, lane), comfort=comfort)
     if kind == "lane_change":
-        target = road.check_lane(spec.get("to_lane"), where + ".to_lane")
-        at = spec_number(spec.get("at"), where + ".at")
-        delta = road.lane_offset(target) - d_lane
-        length = (spec_number(spec["length"], where + ".length", positive=True) if "length" in spec
-                  else transition_length(delta, v_design, comfort))
-        ref = Option(LateralPlan(d_lane, (Transition(at, length, d_lane, d_lane + delta),)))
-        return ManoeuvrePlan(kind, ref, keep, target, comfort=comfort)
+        changes = _lane_changes(road, d_lane, spec, v_design, comfort, where)
+        ref = Option(LateralPlan(d_lane, changes))
+        return ManoeuvrePlan(kind, ref, keep, road.lane_at(changes[0].d1), comfort=comfort)
     items = spec.get("obstacles")
     if not isinstance(items, Sequence) or isinstance(items, str):
         raise SpecError(f"{where}.obstacles: expected a list of obstacles")

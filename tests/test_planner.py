@@ -265,3 +265,18 @@ def test_window_spacing_grows_for_a_short_window_budget():
     reach = 20.0 + 2 * 0.5 * planner.limits.v_max
     assert out["ref_s"][-1] >= reach + planner.back
     assert planner.step_pts * ROUTE_DS > 0.25
+
+
+def test_double_lane_change_with_offsets_and_lengths():
+    spec = {"type": "lane_change", "changes": [{"at": 100.0, "to_offset": 2.0, "length": 30.0},
+                                               {"at": 150.0, "to_offset": 0.0, "length": 25.0}]}
+    planner = Planner(road="two_lane", manoeuvre=spec)
+    start(planner)
+    d, _, _ = planner.plan.ref.lateral.evaluate([99.0, 130.0, 140.0, 175.0, 300.0])
+    np.testing.assert_allclose(d, [0.0, 2.0, 2.0, 0.0, 0.0], atol=1e-15)
+    with pytest.raises(ComponentError, match=r"manoeuvre.changes\[1\]: expected at, one of to_lane"):
+        Planner(road="two_lane", manoeuvre={"type": "lane_change", "changes": [{"at": 1, "to_lane": 1},
+                                                                              {"at": 90}]})
+    with pytest.raises(ComponentError, match="transitions overlap"):
+        Planner(road="two_lane", manoeuvre={"type": "lane_change", "changes": [
+            {"at": 100, "to_lane": 1}, {"at": 110, "to_lane": 0}]})
