@@ -20,7 +20,7 @@ from rich.table import Table
 
 from cosim.errors import UserError
 
-DEFAULT_TRANSPORT = "inproc"  # becomes "zenoh" once the Zenoh transport is complete
+DEFAULT_TRANSPORT = "zenoh"  # DESIGN.md: each Python component its own OS process
 EXIT_FAILED_RUN = 1
 EXIT_USER_ERROR = 2
 

@@ -1,0 +1,59 @@
+"""Same scenario, both transports: bit-identical run folders; failures over Zenoh.
+
+Each Zenoh run spawns one OS process per Python component, so these tests
+take a few seconds each.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from cosim.cli import main
+from cosim.recorder import read_signals
+from test_cli import GOOD
+from test_fmu_component import SCENARIO as LAG_SCENARIO
+from test_fmu_component import lag_fmus  # noqa: F401  (session fixture)
+
+TESTS_DIR = Path(__file__).resolve().parent
+
+pytestmark = pytest.mark.integration
+
+
+@pytest.fixture(autouse=True)
+def child_can_import_test_components(monkeypatch):
+    """Component processes import test_cli / test_fmu_component classes from tests/."""
+    monkeypatch.setenv("PYTHONPATH", str(TESTS_DIR))
+
+
+def _run(scenario: Path, out: Path, transport: str, *extra: str) -> int:
+    return main(["run", str(scenario), "--out", str(out), "--transport", transport, *extra])
+
+
+def test_inproc_and_zenoh_give_identical_files(tmp_path, lag_fmus):
+    scenario = tmp_path / "lag.yaml"
+    scenario.write_text(LAG_SCENARIO.format(fmu=lag_fmus[2]))
+    for transport in ("inproc", "zenoh"):
+        assert _run(scenario, tmp_path / transport, transport) == 0
+    inproc, zenoh = (tmp_path / "inproc" / "signals.csv"), (tmp_path / "zenoh" / "signals.csv")
+    assert inproc.read_bytes() == zenoh.read_bytes()
+    assert len(read_signals(zenoh)[1]) == 101
+    metrics = [json.loads((tmp_path / t / "metrics.json").read_text()) for t in ("inproc", "zenoh")]
+    assert metrics[0] == metrics[1] and metrics[0]["controller"] == {"steps": 51.0}
+    manifest = json.loads((tmp_path / "zenoh" / "manifest.json").read_text())
+    assert manifest["transport"] == "zenoh" and manifest["status"] == "ok"
+
+
+def test_nan_over_zenoh_fails_the_run_with_a_readable_partial_file(tmp_path, capsys):
+    scenario = tmp_path / "gain.yaml"
+    scenario.write_text(GOOD)
+    code = _run(scenario, tmp_path / "z", "zenoh", "--set", "components.gain.parameters.fail_at=0.2")
+    assert code == 1
+    err = capsys.readouterr().err
+    assert "component 'gain' failed at tick 20 (t=0.2 s)" in err and "nan" in err
+    _, data = read_signals(tmp_path / "z" / "signals.csv")
+    assert data.shape == (20, 3)
+    manifest = json.loads((tmp_path / "z" / "manifest.json").read_text())
+    assert manifest["status"] == "failed" and manifest["ticks"] == 19
