@@ -87,3 +87,47 @@ class BadParameter(Component):
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         return {"y": self.mass}
+
+
+class ExitsInInit(Component):
+    """A process that dies while building its component, before the handshake."""
+
+    outputs = (Port("y"),)
+
+    def __init__(self, code: int = 3) -> None:
+        import os
+        os._exit(code)
+
+
+# ---------------------------------------------------------------- test helpers
+
+def launch(name: str, class_name: str, period_ticks: int = 1, **parameters: object):
+    """A PythonComponentLaunch of one of the classes above."""
+    from cosim.inproc import PythonComponentLaunch
+    return PythonComponentLaunch(name, f"tests.zenoh_components:{class_name}",
+                                 dict(parameters), period_ticks)
+
+
+def bits(values: Mapping[str, Value]) -> dict[str, tuple[str, bytes]]:
+    """Each value's kind and raw float64 bytes, to compare outputs bit for bit."""
+    return {name: ("array" if np.ndim(v) else "scalar", np.asarray(v, dtype=np.float64).tobytes())
+            for name, v in values.items()}
+
+
+def run_processes(run_id: str) -> list[int]:
+    """Pids of live (non-zombie) processes whose command line names `run_id`."""
+    import os
+    found = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/cmdline", "rb") as f:
+                argv = f.read().split(b"\0")
+            with open(f"/proc/{entry}/stat") as f:
+                state = f.read().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            continue
+        if run_id.encode() in argv and state != "Z":
+            found.append(int(entry))
+    return found

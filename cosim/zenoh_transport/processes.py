@@ -100,8 +100,8 @@ class ChildProcess:
 
 
 def reap(children: list[ChildProcess], grace_s: float) -> None:
-    """End every child: wait up to `grace_s` for those ending on their own, SIGTERM
-    the others, then SIGKILL whatever is left; always waits so no zombie remains.
+    """End every child: SIGTERM (and SIGCONT, for a stopped one) those still running,
+    SIGKILL whatever is left after `grace_s`; always waits so no zombie remains.
 
     Args:
         children: the processes to end.
@@ -112,6 +112,7 @@ def reap(children: list[ChildProcess], grace_s: float) -> None:
         if child.exit_code() is None:
             try:
                 child.popen.terminate()
+                child.popen.send_signal(signal.SIGCONT)  # a stopped process must run to end
             except ProcessLookupError:
                 pass
     for child in children:
