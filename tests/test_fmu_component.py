@@ -32,14 +32,8 @@ LAG_NAMES = {"u": "u_cmd", "y": "y_out"}
 
 
 def build_lag(out_dir: Path) -> dict[int, Path]:
-    """Build tests/fmus/Lag as FMI 2.0 and 3.0 FMUs with the project's build functions.
-
-    fmu_build only looks for models under the repo's fmus/; it is pointed at
-    tests/fmus for the duration of the build.
-    """
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(fmu_build, "FMUS_DIR", TEST_FMUS)
-        return {v: fmu_build.build_fmu("Lag", v, out_dir) for v in (2, 3)}
+    """Build tests/fmus/Lag as FMI 2.0 and 3.0 FMUs with the project's FMU framework."""
+    return {v: fmu_build.build_fmu_from(TEST_FMUS / "Lag", v, out_dir) for v in (2, 3)}
 
 
 @pytest.fixture(scope="session")
