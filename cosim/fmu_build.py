@@ -21,6 +21,8 @@ import tempfile
 import zipfile
 from pathlib import Path
 
+from cosim.errors import UserError
+
 REPO_DIR = Path(__file__).resolve().parent.parent
 FMUS_DIR = REPO_DIR / "fmus"
 FRAMEWORK_DIR = FMUS_DIR / "framework"
@@ -33,8 +35,11 @@ GENERATOR_SOURCE = "xmlgen.c"
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # fixed, so the same sources give the same .fmu bytes
 
 
-class FmuBuildError(RuntimeError):
-    """The FMU could not be built; the message names the model and the cause."""
+class FmuBuildError(UserError):
+    """The FMU could not be built; the message names the model and the cause.
+
+    A UserError, so `cosim build-fmus` / `cosim run` print it without a traceback.
+    """
 
 
 def _find_models() -> list[str]:
