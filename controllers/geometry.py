@@ -82,6 +82,9 @@ class Path:
         self.k1 = np.asarray(kappa1, dtype=float)
         self.closed = bool(closed)
         ds = np.diff(self.s)
+        if not (self.x.shape == self.y.shape == self.psi.shape == self.s.shape
+                and self.k0.shape == self.k1.shape == ds.shape):
+            raise SpecError("path knots: s, x, y, psi need n + 1 values and kappa0, kappa1 n values")
         if self.s.size < 2 or self.s[0] != 0.0 or np.any(ds <= 0):
             raise SpecError("path knots must start at s = 0 and strictly increase")
         if not all(np.all(np.isfinite(a)) for a in (self.s, self.x, self.y, self.psi, self.k0, self.k1)):

@@ -67,17 +67,23 @@ class LateralPlan:
             d, end = tr.d1, tr.s1
 
     def evaluate(self, s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(d, dd/ds, d2d/ds2) at reference arc lengths s (array)."""
+        """(d, dd/ds, d2d/ds2) at reference arc lengths s (array).
+
+        The transitions chain without overlapping, so d is d_start plus the
+        sum of every transition's change times its quintic shape, clamped to
+        0 before and 1 after it.
+        """
         s = np.asarray(s, dtype=float)
         d = np.full(s.shape, float(self.d_start))
         d1, d2 = np.zeros(s.shape), np.zeros(s.shape)
         for tr in self.transitions:
-            t = np.clip((s - tr.s0) / tr.length, 0.0, 1.0)
+            t = np.clip((s - tr.s0) * (1.0 / tr.length), 0.0, 1.0)
+            tt = t * t
+            omt = 1.0 - t
             big = tr.d1 - tr.d0
-            after = s >= tr.s0
-            d = np.where(after, tr.d0 + big * t ** 3 * (10 - 15 * t + 6 * t * t), d)
-            d1 = np.where(after, big / tr.length * 30 * t * t * (1 - t) ** 2, d1)
-            d2 = np.where(after, big / tr.length ** 2 * 60 * t * (1 - t) * (1 - 2 * t), d2)
+            d += big * tt * t * (10.0 + t * (6.0 * t - 15.0))
+            d1 += (30.0 * big / tr.length) * tt * omt * omt
+            d2 += (60.0 * big / tr.length ** 2) * t * omt * (1.0 - 2.0 * t)
         return d, d1, d2
 
     def active(self, s: float) -> bool:

@@ -20,6 +20,15 @@ lateral_offset (vehicle CG left of the recommended trajectory, m), v_ref
 (recommended speed at the vehicle), manoeuvre_state (0 keep, 1 lateral
 transition under way, 2 braking to a stop), obstacle_distance (to the next
 obstacle in the vehicle's lane, capped at obstacle_range).
+
+Parameters in a scenario YAML, for example:
+    road: {builder: two_lane, length: 600, radius: 200}     # or satory_standin, or
+                                      # {reference: {segments: [...]}, lanes: 2, lane_width: 3.5}
+    lane: 0
+    manoeuvre: {type: obstacle_avoidance, margin: 0.5,
+                obstacles: [{s: 250, lane: 0, length: 4, width: 2}]}
+    speed: {v_max: 12, a_lat_max: 2, a_max: 1, d_max: 1.5, j_max: 1}
+Obstacle and lane-change positions are reference arc lengths (first lap on a loop).
 """
 
 from __future__ import annotations
@@ -148,7 +157,10 @@ class Planner(Component):
             self.limits = SpeedLimits.from_spec(speed)
             self.manoeuvre_spec = manoeuvre
             self.plan: ManoeuvrePlan = plan_manoeuvre(self.road, self.lane, manoeuvre, self.limits.v_max)
-            self.stop_at_end, self.start_from_rest = bool(stop_at_end), start_from_rest
+            if not isinstance(stop_at_end, bool) or not (start_from_rest is None or isinstance(start_from_rest, bool)):
+                raise SpecError(f"stop_at_end / start_from_rest: expected true or false (start_from_rest may be "
+                                f"null), got {stop_at_end!r} / {start_from_rest!r}")
+            self.stop_at_end, self.start_from_rest = stop_at_end, start_from_rest
             if isinstance(laps, bool) or not isinstance(laps, int) or laps < 1:
                 raise SpecError(f"laps: expected an integer >= 1, got {laps!r}")
             self.laps = laps
@@ -162,11 +174,11 @@ class Planner(Component):
                                          spec_number(planner_period, "planner_period", positive=True))
         except SpecError as exc:
             raise ComponentError(f"parameter {exc}") from None
-        self.progress = 0.0
+        self.progress = self.offset = 0.0
         self.ref_route: RoutePlan | None = None
         self.alt_route: RoutePlan | None = None
 
-    def _spacing(self, minimum: float, preview: float, period: float) -> float:
+    def _spacing(self, minimum: float, preview: float, period: float) -> int:
         """Window spacing, in route grid steps, that covers the required reach."""
         reach = self.back + preview + 2.0 * period * self.limits.v_max
         ref = self.road.reference
@@ -184,7 +196,7 @@ class Planner(Component):
         s0 = proj.s - self.road.length if self.road.closed and proj.s > 0.5 * self.road.length else proj.s
         self.progress = s0
         self._check_on_road(t0, x, y, proj.distance)
-        from_rest = vx < 0.1 if self.start_from_rest is None else bool(self.start_from_rest)
+        from_rest = vx < 0.1 if self.start_from_rest is None else self.start_from_rest
         start = s0 - (self.launch if from_rest else self.back)
         if self.road.closed:
             end = s0 + self.laps * self.road.length
