@@ -90,16 +90,23 @@ def test_stopped_process_fails_after_the_deadline():
     assert failure.cause == "no reply within the deadline of 0.5 s (process hung or stopped)"
 
 
-def test_failure_is_sticky():
+def test_after_a_failure_the_others_still_stop_cleanly():
+    """The master calls stop() on every component after a failure: the failed one
+    raises nothing more, the healthy one returns its metrics."""
     run_id = f"t-sticky-{os.getpid()}"
-    with ZenohComponents([launch("mixer", "Mixer", fail_at=0.015)], run_id) as hosted:
-        comp = hosted.components["mixer"]
-        comp.start(0.0, {"u": 1.0, "w": W})
+    with ZenohComponents([launch("bad", "Mixer", fail_at=0.015), launch("good", "Mixer")],
+                         run_id) as hosted:
+        bad, good = hosted.components["bad"], hosted.components["good"]
+        for comp in (bad, good):
+            comp.start(0.0, {"u": 1.0, "w": W})
+        good.step(1, TICK, {"u": 1.0, "w": W})
         with pytest.raises(ComponentFailure) as first:
-            comp.step(2, 2 * TICK, {"u": 1.0, "w": W})
+            bad.step(2, 2 * TICK, {"u": 1.0, "w": W})
         with pytest.raises(ComponentFailure) as again:
-            comp.step(3, 3 * TICK, {"u": 1.0, "w": W})
+            bad.step(3, 3 * TICK, {"u": 1.0, "w": W})
         assert again.value is first.value
+        assert bad.stop() == {}
+        assert good.stop()["steps"] == 2.0
 
 
 @pytest.mark.parametrize("spec", [

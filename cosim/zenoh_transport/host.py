@@ -94,7 +94,7 @@ class ZenohComponents:
         self._watchdog: Watchdog | None = None
         self._live: LivePublisher | None = None
         self._seq = 0
-        self._failure: ComponentFailure | None = None
+        self._failed: dict[str, ComponentFailure] = {}  # by component: raised again on reuse
 
     # ----------------------------------------------------------------- lifecycle
     def __enter__(self) -> "ZenohComponents":
@@ -208,9 +208,12 @@ class ZenohComponents:
             raise self._fail(ComponentFailure(remote.name, tick, t, str(exc))) from None
 
     def exchange_stop(self, remote: RemoteComponent) -> dict[str, float]:
-        """Send STOP to `remote`; return its metrics."""
+        """Send STOP to `remote`; return its metrics ({} if it already failed: that
+        failure has been raised once, the master stops the others after it)."""
         assert self._watchdog is not None
         self._watchdog.finished.add(remote.name)  # its exit from now on is expected
+        if remote.name in self._failed:
+            return {}
         request = HEADER.pack(Kind.STOP, self._seq + 1, -1, 0.0)
         data = self._exchange(remote, request, None, 0.0)
         return {str(k): float(v) for k, v in decode_json(data).items()}
@@ -218,8 +221,8 @@ class ZenohComponents:
     def _exchange(self, remote: RemoteComponent, request: bytes, tick: int | None,
                   t: float) -> bytes:
         """Put one request and block until its reply; raise ComponentFailure on any failure."""
-        if self._failure is not None:
-            raise self._failure
+        if remote.name in self._failed:
+            raise self._failed[remote.name]
         watchdog = self._watchdog
         assert watchdog is not None, "ZenohComponents used outside its `with` block"
         self._seq += 1
@@ -252,7 +255,9 @@ class ZenohComponents:
         return None
 
     def _fail(self, failure: ComponentFailure) -> ComponentFailure:
-        self._failure = failure
+        self._failed[failure.component] = failure
+        if self._watchdog is not None:
+            self._watchdog.finished.add(failure.component)  # reported once, not again
         return failure
 
     # ----------------------------------------------------------------- live view
