@@ -179,3 +179,20 @@ def project(window: TrajectoryWindow, px: float, py: float) -> Projection:
                       psi_path=lerp(window.psi), kappa=lerp(window.kappa),
                       dkappa_ds=float((window.kappa[i + 1] - window.kappa[i]) / step),
                       v=lerp(window.v), a=lerp(window.a), extrapolated=0)
+
+
+def point_at(window: TrajectoryWindow, s: float) -> tuple[float, float]:
+    """World position of the path at window arc length s (end tangents beyond the window).
+
+    Args:
+        window: a valid trajectory window; s: arc length in window coordinates [m].
+    """
+    for end, outside in ((0, s < window.s[0]), (-1, s > window.s[-1])):
+        if outside:
+            along = s - float(window.s[end])
+            heading = float(window.psi[end])
+            return (float(window.x[end]) + along * math.cos(heading),
+                    float(window.y[end]) + along * math.sin(heading))
+    i = min(int(np.searchsorted(window.s, s, side="right")) - 1, len(window.s) - 2)
+    t = (s - float(window.s[i])) / float(window.s[i + 1] - window.s[i])
+    return _hermite(_segment(window, i), t)[0]

@@ -1,0 +1,140 @@
+"""Baseline path-tracking controllers: Pure Pursuit and Stanley, with a PI speed loop.
+
+Same inputs and command outputs as the backstepping controller (plant
+measurements, the recommended ref_* window; delta, torque), so a scenario can
+swap them in its YAML. Both share the PI speed loop with feed-forward of the
+reference acceleration (control_common.SpeedPI) and the same actuator limits.
+For comparison plots they output the same path errors: yL and psiL at the
+preview point ls ahead of the CG (not used by their laws), yc at the CG, ex,
+vx_ref.
+
+Pure Pursuit (geometric, rear axle): the target is the path point a look-ahead
+distance ld = max(ld_min, ld_gain vx) along the window beyond the rear axle's
+foot point; with alpha the target's bearing from the vehicle heading and d its
+distance, delta = atan(2 L sin(alpha) / d), L = lf + lr.
+
+Stanley (front axle): with psi_e = path heading - psi at the front axle's foot
+point and e its signed offset (left positive),
+delta = psi_e + atan(-k_stanley e / (k_soft + vx)).
+
+No trajectory yet (an all-zero window): steering held, torque 0, internals 0.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+from cosim.component import Component, ComponentError, Value
+from controllers.control_common import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits,
+                                        PlantMeasurement, SpeedPI, SteeringLimiter, StepClock,
+                                        empty_window_outputs, outputs_to_floats, path_errors,
+                                        read_inputs)
+from controllers.trajectory import TrajectoryWindow
+from controllers.vehicle_params import VehicleParams
+from controllers.window_projection import is_empty, point_at, project, wrap_angle
+
+
+class _BaselineController(Component):
+    """Common step of the baselines: checks, speed loop, limits, outputs; subclasses steer."""
+
+    inputs = CONTROLLER_INPUTS
+    outputs = COMMAND_OUTPUTS
+    default_period = 0.01
+
+    def __init__(self, m: float, iy: float, Rw: float, lf: float, lr: float, ls: float,
+                 kp: float, ki: float, max_delta: float, max_delta_rate: float,
+                 max_torque: float, min_torque: float, period: float) -> None:
+        self.params = VehicleParams(m=m, iy=iy, Rw=Rw, lf=lf, lr=lr)
+        if not ls >= 0.0:
+            raise ComponentError(f"ls must be >= 0, got {ls!r}")
+        self.ls = float(ls)
+        self.limits = ActuatorLimits(max_delta, max_delta_rate, max_torque, min_torque)
+        self.steering = SteeringLimiter(self.limits)
+        self.speed = SpeedPI(kp, ki, self.params.me, self.params.Rw, self.limits)
+        self.clock = StepClock(period)
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """One control step at time t."""
+        dt = self.clock.advance(t)
+        plant, window = read_inputs(inputs, t)
+        if is_empty(window):
+            return empty_window_outputs(self.outputs, self.steering.last)
+        errors = path_errors(window, plant, self.ls)
+        ex = plant.vx - errors.vx_ref
+        torque = self.speed.torque(ex, errors.vx_ref_dot, dt)
+        delta = self.steering.apply(self.steer(plant, window), dt)
+        try:
+            return outputs_to_floats({"delta": delta, "torque": torque, "yL": errors.y_l,
+                                      "psiL": errors.psi_l, "yc": errors.y_c, "ex": ex,
+                                      "vx_ref": errors.vx_ref})
+        except ComponentError as error:
+            raise ComponentError(f"at t = {t}: {error}") from None
+
+    def steer(self, plant: PlantMeasurement, window: TrajectoryWindow) -> float:
+        """Steering command before limits (subclasses)."""
+        raise NotImplementedError
+
+
+class PurePursuitController(_BaselineController):
+    """Pure Pursuit steering + PI speed loop (see module docstring).
+
+    Args:
+        m, iy, Rw, lf, lr: nominal vehicle parameters (Table I defaults).
+        ls: preview distance of the yL/psiL diagnostics [m].
+        ld_min: smallest look-ahead [m] (> 0); ld_gain: look-ahead per unit speed [s] (>= 0).
+        kp, ki: PI speed gains [N/(m/s)], [N/m].
+        max_delta, max_delta_rate, max_torque, min_torque: actuator limits; period: first dt [s].
+    """
+
+    def __init__(self, *, m: float = 1500.0, iy: float = 1.2, Rw: float = 0.3, lf: float = 1.006,
+                 lr: float = 1.462, ls: float = 5.0, ld_min: float = 4.0, ld_gain: float = 0.6,
+                 kp: float = 3000.0, ki: float = 600.0, max_delta: float = 0.5,
+                 max_delta_rate: float = 1.0, max_torque: float = 3000.0,
+                 min_torque: float = -6000.0, period: float = 0.01) -> None:
+        super().__init__(m, iy, Rw, lf, lr, ls, kp, ki, max_delta, max_delta_rate, max_torque,
+                         min_torque, period)
+        if not (ld_min > 0.0 and ld_gain >= 0.0):
+            raise ComponentError(f"need ld_min > 0 and ld_gain >= 0, got {ld_min!r}, {ld_gain!r}")
+        self.ld_min, self.ld_gain = float(ld_min), float(ld_gain)
+
+    def steer(self, plant: PlantMeasurement, window: TrajectoryWindow) -> float:
+        """Pure Pursuit steering angle from the rear axle towards the look-ahead point."""
+        rear_x = plant.x - self.params.lr * math.cos(plant.psi)
+        rear_y = plant.y - self.params.lr * math.sin(plant.psi)
+        look_ahead = max(self.ld_min, self.ld_gain * plant.vx)
+        foot = project(window, rear_x, rear_y)
+        target_x, target_y = point_at(window, foot.s + look_ahead)
+        distance = math.hypot(target_x - rear_x, target_y - rear_y)
+        bearing = wrap_angle(math.atan2(target_y - rear_y, target_x - rear_x) - plant.psi)
+        return math.atan(2.0 * self.params.wheelbase * math.sin(bearing) / max(distance, 1e-6))
+
+
+class StanleyController(_BaselineController):
+    """Stanley steering + PI speed loop (see module docstring).
+
+    Args:
+        m, iy, Rw, lf, lr: nominal vehicle parameters (Table I defaults).
+        ls: preview distance of the yL/psiL diagnostics [m].
+        k_stanley: cross-track gain [1/s] (> 0); k_soft: speed softening [m/s] (> 0).
+        kp, ki: PI speed gains [N/(m/s)], [N/m].
+        max_delta, max_delta_rate, max_torque, min_torque: actuator limits; period: first dt [s].
+    """
+
+    def __init__(self, *, m: float = 1500.0, iy: float = 1.2, Rw: float = 0.3, lf: float = 1.006,
+                 lr: float = 1.462, ls: float = 5.0, k_stanley: float = 1.0, k_soft: float = 1.0,
+                 kp: float = 3000.0, ki: float = 600.0, max_delta: float = 0.5,
+                 max_delta_rate: float = 1.0, max_torque: float = 3000.0,
+                 min_torque: float = -6000.0, period: float = 0.01) -> None:
+        super().__init__(m, iy, Rw, lf, lr, ls, kp, ki, max_delta, max_delta_rate, max_torque,
+                         min_torque, period)
+        if not (k_stanley > 0.0 and k_soft > 0.0):
+            raise ComponentError(f"need k_stanley > 0 and k_soft > 0, got {k_stanley!r}, {k_soft!r}")
+        self.k_stanley, self.k_soft = float(k_stanley), float(k_soft)
+
+    def steer(self, plant: PlantMeasurement, window: TrajectoryWindow) -> float:
+        """Stanley steering angle from the front axle's heading and cross-track errors."""
+        front = project(window, plant.x + self.params.lf * math.cos(plant.psi),
+                        plant.y + self.params.lf * math.sin(plant.psi))
+        heading_error = wrap_angle(front.psi_path - plant.psi)
+        return heading_error + math.atan(-self.k_stanley * front.offset / (self.k_soft + plant.vx))
