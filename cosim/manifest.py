@@ -7,6 +7,7 @@ Written once before tick 0 (status "running") and rewritten at the end (status
 from __future__ import annotations
 
 import datetime
+import os
 import platform
 import socket
 import sys
@@ -57,6 +58,7 @@ def base_manifest(scenario: Any, prepared: Any, hosted: dict[str, Any], transpor
         "periods_ticks": {n: int(c.period_ticks) for n, c in hosted.items()},
         "fmus": {plan.name: _fmu_entry(plan) for plan in prepared.fmus},
         "hosts": {name: host for name in hosted},
+        "pids": {name: getattr(c, "pid", None) or os.getpid() for name, c in hosted.items()},
         "python": sys.version.split()[0],
         "platform": platform.platform(),
         "packages": package_versions(),

@@ -7,11 +7,14 @@ take a few seconds each.
 from __future__ import annotations
 
 import json
+import os
+import signal
 from pathlib import Path
 
 import pytest
 
 from cosim.cli import main
+from cosim.component import Component, Port
 from cosim.recorder import read_signals
 from test_cli import GOOD
 from test_fmu_component import SCENARIO as LAG_SCENARIO
@@ -20,6 +23,21 @@ from test_fmu_component import lag_fmus  # noqa: F401  (session fixture)
 TESTS_DIR = Path(__file__).resolve().parent
 
 pytestmark = pytest.mark.integration
+
+
+class Doomed(Component):
+    """Passes x through; its process kills itself with SIGKILL at t == die_at."""
+
+    inputs = (Port("x"),)
+    outputs = (Port("y"),)
+
+    def __init__(self, die_at: float):
+        self.die_at = die_at
+
+    def step(self, t, inputs):
+        if t == self.die_at:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return {"y": inputs["x"]}
 
 
 @pytest.fixture(autouse=True)
@@ -57,3 +75,19 @@ def test_nan_over_zenoh_fails_the_run_with_a_readable_partial_file(tmp_path, cap
     assert data.shape == (20, 3)
     manifest = json.loads((tmp_path / "z" / "manifest.json").read_text())
     assert manifest["status"] == "failed" and manifest["ticks"] == 19
+
+
+def test_killed_component_process_ends_the_run_with_its_name(tmp_path, capsys):
+    scenario = tmp_path / "doomed.yaml"
+    scenario.write_text(GOOD.replace("test_cli:Gain", "test_master_transports:Doomed")
+                        .replace("{k: 3.0}", "{die_at: 0.3}"))
+    assert _run(scenario, tmp_path / "z", "zenoh") == 1
+    err = capsys.readouterr().err
+    assert "component 'gain'" in err and "tick 30" in err
+    names, data = read_signals(tmp_path / "z" / "signals.csv")
+    assert names == ["time", "gain.y", "ramp.value"] and data.shape == (30, 3)
+    manifest = json.loads((tmp_path / "z" / "manifest.json").read_text())
+    assert manifest["status"] == "failed" and "gain" in manifest["error"]
+    pid = manifest["pids"]["gain"]
+    with pytest.raises(ProcessLookupError):  # no process left behind
+        os.kill(pid, 0)
