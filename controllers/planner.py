@@ -132,7 +132,7 @@ class Planner(Component):
     def __init__(self, road="satory_standin", lane=0, manoeuvre=None, speed=None,
                  start_from_rest=None, stop_at_end=True, laps=1, distance=None,
                  window_spacing=0.5, window_back=3.0, preview=5.0, planner_period=0.1,
-                 launch_offset=2.0, obstacle_range=1000.0, off_road=20.0):
+                 launch_offset=2.0, obstacle_range=1000.0, off_road=20.0, **unknown):
         """Check and keep the parameters (all plain YAML values).
 
         Args:
@@ -150,7 +150,11 @@ class Planner(Component):
             launch_offset: from rest, the profile's v = 0 point lies this far behind the vehicle, m.
             obstacle_range: cap of obstacle_distance, m.
             off_road: the run stops when the vehicle is this far outside the road's edges, m.
+            unknown: any other name is an error listing the known ones.
         """
+        if unknown:
+            known = [n for n in Planner.__init__.__code__.co_varnames[1:Planner.__init__.__code__.co_argcount]]
+            raise ComponentError(f"unknown parameters {sorted(unknown)} (known: {', '.join(known)})")
         try:
             self.road = road_from_spec(road)
             self.lane = self.road.check_lane(lane, "lane")
