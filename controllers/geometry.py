@@ -160,10 +160,7 @@ class Path:
         n = self.s.size - (1 if self.closed else 0)
         if s_guess is None:
             return np.arange(n)
-        if self.closed:
-            d = wrap_angle((self.s[:n] - s_guess) * (2 * np.pi / self.length)) * self.length / (2 * np.pi)
-        else:
-            d = self.s[:n] - s_guess
+        d = self._gap(self.s[:n], s_guess)
         idx = np.nonzero(np.abs(d) <= search)[0]
         return idx if idx.size else np.arange(n)
 
@@ -197,8 +194,8 @@ class Path:
         return Projection(s=float(self.wrap(s)), lateral=-dx * math.sin(psi) + dy * math.cos(psi),
                           distance=math.hypot(dx, dy), psi=psi, kappa=kap, heading_error=herr)
 
-    def _gap(self, s: float, s_ref: float) -> float:
-        """s - s_ref, the short way round on a closed path."""
+    def _gap(self, s, s_ref: float):
+        """s - s_ref (float or array), the short way round on a closed path."""
         d = s - s_ref
         return (d + 0.5 * self.length) % self.length - 0.5 * self.length if self.closed else d
 
