@@ -101,7 +101,7 @@ class ZenohComponents:
         try:
             self._open_session()
             for spec in self.specs:
-                self._children[spec.name] = ChildProcess(spec, self.run_id, self.endpoint)
+                self._children[spec.name] = self._spawn(spec)
             self._handshake()
             self._watchdog = Watchdog(self.session, self.run_id, self._children, self.deadline_s)
             self._watchdog.start()
@@ -126,6 +126,10 @@ class ZenohComponents:
                 self._live = None
             self.session.close()
             self.session = None
+
+    def _spawn(self, spec: PythonComponentLaunch) -> ChildProcess:
+        """Start the process of one component (a subclass may start it elsewhere)."""
+        return ChildProcess(spec, self.run_id, self.endpoint)
 
     @property
     def pids(self) -> dict[str, int]:

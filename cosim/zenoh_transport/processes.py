@@ -14,6 +14,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -51,9 +52,11 @@ class ChildProcess:
         spec: what the process hosts.
         run_id: the run's id (scopes every key).
         endpoint: the master's listen endpoint the child connects to.
+        extra_args: more runner arguments (a worker passes --zenoh-config).
     """
 
-    def __init__(self, spec: PythonComponentLaunch, run_id: str, endpoint: str) -> None:
+    def __init__(self, spec: PythonComponentLaunch, run_id: str, endpoint: str,
+                 extra_args: Sequence[str] = ()) -> None:
         self.name = spec.name
         try:
             params = json.dumps(dict(spec.parameters), default=_json_default)
@@ -62,7 +65,8 @@ class ChildProcess:
                             f"process: {exc}") from None
         argv = [sys.executable, "-m", "cosim.zenoh_transport.runner", "--name", spec.name,
                 "--run-id", run_id, "--connect", endpoint, "--class", spec.class_path,
-                "--params", params, "--period-ticks", str(int(spec.period_ticks))]
+                "--params", params, "--period-ticks", str(int(spec.period_ticks)),
+                *extra_args]
         self._log = tempfile.TemporaryFile(prefix=f"cosim-{spec.name}-")
         self.popen = subprocess.Popen(argv, env=_child_env(), stdin=subprocess.DEVNULL,
                                       stdout=self._log, stderr=subprocess.STDOUT)

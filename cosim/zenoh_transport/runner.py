@@ -48,6 +48,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--class", dest="class_path", required=True, help="module:Class")
     parser.add_argument("--params", default="{}", help="constructor parameters as JSON")
     parser.add_argument("--period-ticks", type=int, default=1, help="for ps and logs only")
+    parser.add_argument("--zenoh-config", default=None,
+                        help="full session config as JSON (a worker's TLS/ACL); replaces the "
+                             "default peer config, --connect then only names the master")
     return parser.parse_args(argv)
 
 
@@ -135,7 +138,11 @@ def serve(args: argparse.Namespace) -> int:
     launch = PythonComponentLaunch(name=args.name, class_path=args.class_path,
                                    parameters=json.loads(args.params),
                                    period_ticks=args.period_ticks)
-    with zenoh.open(config.client_peer_config(args.connect)) as session:
+    if args.zenoh_config:
+        conf = zenoh.Config.from_json5(args.zenoh_config)
+    else:
+        conf = config.client_peer_config(args.connect)
+    with zenoh.open(conf) as session:
         _exit_when_master_gone(session, args.run_id)
         token = session.liveliness().declare_token(config.alive_key(args.run_id, args.name))
         requests = session.declare_subscriber(config.request_key(args.run_id, args.name))

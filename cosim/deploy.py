@@ -1,0 +1,187 @@
+"""Deployment settings of distributed runs: endpoints, TLS and access control.
+
+These settings describe the network, not the experiment, so they live in their
+own YAML file (`--deploy FILE`), never in the scenario:
+
+    listen: [tls/10.0.0.1:7447]          # where this process accepts Zenoh links
+    connect: [tls/10.0.0.2:7447]         # workers or a router to join
+    tls:                                 # all paths relative to this file
+      root_ca_certificate: ca.pem        # CA that signed every peer's certificate
+      certificate: node.pem              # this node's certificate (listen and connect)
+      private_key: node-key.pem
+      mutual: true                       # peers must present a certificate too
+      verify_name: false                 # check the endpoint's name against the cert
+    access_control:                      # Zenoh's own ACL block, passed as is
+      enabled: true
+      default_permission: deny
+      rules: [...]
+      subjects: [...]
+      policies: [...]
+    discovery_timeout_s: 3.0             # how long the master looks for its workers
+
+`zenoh_config` turns settings plus a mode and endpoints into a `zenoh.Config`;
+every session of the distributed platform (master, worker, component
+process, router, `cosim workers`) is built through it, so TLS and ACL apply
+to all of them alike.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Optional
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from cosim.errors import UserError
+
+_PROTOCOLS = ("tcp", "tls", "udp", "quic", "unixsock-stream")
+
+
+class TlsSettings(BaseModel):
+    """Certificates of one node (paths resolved against the deployment file)."""
+
+    model_config = ConfigDict(extra="forbid")
+    root_ca_certificate: str
+    certificate: str
+    private_key: str
+    mutual: bool = True
+    verify_name: bool = False
+
+
+class DeploySettings(BaseModel):
+    """The whole deployment file (see the module docstring)."""
+
+    model_config = ConfigDict(extra="forbid")
+    listen: list[str] = Field(default_factory=list)
+    connect: list[str] = Field(default_factory=list)
+    tls: Optional[TlsSettings] = None
+    access_control: Optional[dict[str, Any]] = None
+    discovery_timeout_s: float = Field(3.0, gt=0)
+
+    @field_validator("listen", "connect")
+    @classmethod
+    def _endpoints(cls, values: list[str]) -> list[str]:
+        for value in values:
+            check_endpoint(value)
+        return values
+
+
+def check_endpoint(endpoint: str) -> str:
+    """Return `endpoint` if it looks like a Zenoh endpoint "proto/address", else raise ValueError.
+
+    Args:
+        endpoint: e.g. "tcp/10.0.0.1:7447" or "tls/host.example:7447".
+    """
+    proto, sep, address = str(endpoint).partition("/")
+    if not sep or proto not in _PROTOCOLS or not address:
+        raise ValueError(f"endpoint {endpoint!r} is not of the form PROTOCOL/ADDRESS "
+                         f"with PROTOCOL one of {', '.join(_PROTOCOLS)}")
+    return endpoint
+
+
+def load_deploy(path: str | Path) -> DeploySettings:
+    """Read a deployment file; certificate paths become absolute (relative to the file).
+
+    Args:
+        path: the YAML file.
+    Raises:
+        UserError naming the file and each bad field.
+    """
+    path = Path(path)
+    try:
+        document = yaml.safe_load(path.read_text()) or {}
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise UserError(f"{path}: cannot read deployment file: {exc}") from None
+    if not isinstance(document, dict):
+        raise UserError(f"{path}: a deployment file is a mapping (listen, connect, tls, "
+                        f"access_control), got {type(document).__name__}")
+    try:
+        settings = DeploySettings.model_validate(document)
+    except ValidationError as exc:
+        lines = [f"{path}: {'.'.join(str(p) for p in e['loc']) or '<file>'}: {e['msg']}"
+                 for e in exc.errors()]
+        raise UserError("\n".join(lines)) from None
+    if settings.tls is not None:
+        settings.tls = _resolve_tls(settings.tls, path)
+    return settings
+
+
+def _resolve_tls(tls: TlsSettings, path: Path) -> TlsSettings:
+    resolved = {}
+    for field in ("root_ca_certificate", "certificate", "private_key"):
+        file = Path(getattr(tls, field))
+        file = file if file.is_absolute() else (path.parent / file)
+        if not file.is_file():
+            raise UserError(f"{path}: tls.{field}: no such file {str(file)!r}")
+        resolved[field] = str(file.resolve())
+    return tls.model_copy(update=resolved)
+
+
+def merge_endpoints(settings: DeploySettings | None, listen: list[str] | None = None,
+                    connect: list[str] | None = None) -> DeploySettings:
+    """Settings with command-line endpoints added (command line first).
+
+    Args:
+        settings: from a deployment file, or None for defaults.
+        listen / connect: endpoints given on the command line.
+    Raises:
+        UserError for an endpoint that is not PROTOCOL/ADDRESS.
+    """
+    base = settings or DeploySettings()
+    try:
+        for value in [*(listen or []), *(connect or [])]:
+            check_endpoint(value)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    return base.model_copy(update={
+        "listen": _unique([*(listen or []), *base.listen]),
+        "connect": _unique([*(connect or []), *base.connect])})
+
+
+def _unique(values: list[str]) -> list[str]:
+    return list(dict.fromkeys(values))
+
+
+def zenoh_settings(settings: DeploySettings | None, mode: str, listen: list[str],
+                   connect: list[str]) -> dict[str, Any]:
+    """The Zenoh configuration document (a dict) for one session.
+
+    Args:
+        settings: TLS and ACL to apply (None: plain).
+        mode: "peer", "client" or "router".
+        listen / connect: the session's endpoints.
+    """
+    document: dict[str, Any] = {
+        "mode": mode,
+        "listen": {"endpoints": list(listen)},
+        "connect": {"endpoints": list(connect)},
+        "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": False}},
+    }
+    if settings is not None and settings.tls is not None:
+        tls = settings.tls
+        document["transport"] = {"link": {"tls": {
+            "root_ca_certificate": tls.root_ca_certificate,
+            "listen_certificate": tls.certificate, "listen_private_key": tls.private_key,
+            "connect_certificate": tls.certificate, "connect_private_key": tls.private_key,
+            "enable_mtls": tls.mutual, "verify_name_on_connect": tls.verify_name}}}
+    if settings is not None and settings.access_control is not None:
+        document["access_control"] = settings.access_control
+    return document
+
+
+def zenoh_config(settings: DeploySettings | None, mode: str, listen: list[str],
+                 connect: list[str]) -> Any:
+    """A `zenoh.Config` for one session (see `zenoh_settings` for the arguments).
+
+    Raises:
+        UserError when Zenoh rejects the configuration (bad ACL block, say).
+    """
+    import zenoh
+
+    document = zenoh_settings(settings, mode, listen, connect)
+    try:
+        return zenoh.Config.from_json5(json.dumps(document))
+    except zenoh.ZError as exc:
+        raise UserError(f"invalid Zenoh configuration from the deployment settings: {exc}") from None
