@@ -14,7 +14,8 @@ from pathlib import Path
 from typing import Annotated, Any, Union
 
 from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field,
-                      FiniteFloat, PositiveFloat, PrivateAttr, Tag, ValidationInfo,
+                      FiniteFloat, NonNegativeFloat, PositiveFloat, PrivateAttr, Tag,
+                      ValidationInfo,
                       model_validator)
 
 from cosim.errors import Problem, ScenarioError
@@ -181,6 +182,16 @@ class RecordSpec(BaseModel):
                 and not any(fnmatch.fnmatchcase(signal, g) for g in self.exclude))
 
 
+class MetricsSpec(BaseModel):
+    """Settings of the run metrics (cosim.metrics): transient to skip, cones, body size."""
+
+    model_config = STRICT
+    skip_s: NonNegativeFloat = 0.0
+    cones: list[tuple[FiniteFloat, FiniteFloat]] = []
+    vehicle_length: PositiveFloat = 4.5
+    vehicle_width: PositiveFloat = 1.8
+
+
 class Scenario(BaseModel):
     """A validated scenario; see the module docstring and cosim.scenario for the format."""
 
@@ -194,6 +205,7 @@ class Scenario(BaseModel):
     sources: dict[str, SourceSpec] = {}
     connections: list[ConnectionEntry] = []
     record: RecordSpec = RecordSpec()
+    metrics: MetricsSpec = MetricsSpec()
 
     _file: Path | None = PrivateAttr(None)
     _lines: LineMap = PrivateAttr(default_factory=LineMap)

@@ -208,3 +208,22 @@ def test_json_schema_accepts_the_example_and_rejects_extras(lane_change: Path) -
     document["components"]["vehicle"]["colour"] = "red"
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate(document, schema)
+
+
+def test_metrics_section_is_typed(tmp_path):
+    """The metrics section takes cones as [x, y] pairs and rejects unknown fields with their line."""
+    from cosim.errors import ScenarioError
+    from cosim.scenario import load_scenario
+    good = tmp_path / "good.yaml"
+    good.write_text(
+        "name: m\nduration: 1\ntick: 0.1\n"
+        "components:\n  src:\n    python: cosim.sources:Constant\n"
+        "metrics:\n  skip_s: 0.5\n  cones: [[1, 2], [3.5, -1]]\n")
+    scenario = load_scenario(good)
+    assert scenario.metrics.cones == [(1.0, 2.0), (3.5, -1.0)]
+    assert scenario.metrics.skip_s == 0.5
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(good.read_text() + "  cone_radius: 2\n")
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(bad)
+    assert "bad.yaml:10" in str(err.value) and "metrics.cone_radius" in str(err.value)
