@@ -59,6 +59,7 @@ def run(
     set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE (YAML value), repeatable"),
     realtime: Optional[float] = typer.Option(
         None, "--realtime", help="pace to wall clock at FACTOR (bare --realtime: 1.0)"),
+    figures: bool = typer.Option(True, "--figures/--no-figures", help="draw the run's figures"),
 ) -> None:
     """Run a scenario and write its run folder."""
     from cosim.run import run_scenario
@@ -72,11 +73,42 @@ def run(
                               progress=sys.stdout.isatty())
     except UserError as error:
         raise _fail(error) from None
+    if result.ticks > 0:
+        for note in analyse_run_folder(result, figures):
+            print(note)
     print_summary(result)
     if result.status != "ok":
         Console(stderr=True, highlight=False, soft_wrap=True).print(
             f"[red]run failed:[/red] {result.error}", markup=True)
         raise typer.Exit(EXIT_FAILED_RUN)
+
+
+def analyse_run_folder(result: Any, figures: bool) -> list[str]:
+    """Merge the run metrics into metrics.json and draw the figures; notes to print.
+
+    A run folder that cannot be analysed (e.g. a scenario without a vehicle)
+    gives a note, not an error: the run itself succeeded.
+
+    Args:
+        result: a cosim.run.RunResult (its metrics are refreshed from metrics.json).
+        figures: draw the PNG figures too.
+    """
+    from cosim.metrics import write_metrics
+
+    notes: list[str] = []
+    try:
+        write_metrics(result.out_dir)
+        result.metrics = json.loads((result.out_dir / "metrics.json").read_text())
+    except Exception as exc:  # analysis is best effort after a run
+        notes.append(f"metrics not computed: {exc}")
+    if figures:
+        try:
+            from cosim.figures import draw_figures
+
+            notes += [f"figure: {path}" for path in draw_figures(result.out_dir)]
+        except Exception as exc:
+            notes.append(f"figures not drawn: {exc}")
+    return notes
 
 
 def print_summary(result: Any, console: Console | None = None) -> None:
@@ -96,9 +128,8 @@ def print_summary(result: Any, console: Console | None = None) -> None:
     table.add_row("real-time factor", f"{result.real_time_factor:.4g}")
     for key, value in (result.realtime or {}).items():
         table.add_row(f"realtime.{key}", f"{value:.4g}" if isinstance(value, float) else str(value))
-    for component, metrics in result.metrics.items():
-        for key, value in metrics.items():
-            table.add_row(f"{component}.{key}", f"{value:.6g}")
+    for key, value in result.metrics.items():
+        table.add_row(key, f"{value:.6g}" if isinstance(value, (int, float)) else str(value))
     console.print(table)
 
 

@@ -71,7 +71,7 @@ class RunResult:
     sim_time_s: float
     wall_time_s: float
     real_time_factor: float
-    metrics: dict[str, dict[str, float]] = field(default_factory=dict)
+    metrics: dict[str, float] = field(default_factory=dict)  # "component.metric" -> value
     realtime: dict[str, Any] | None = None
 
     @property
@@ -224,7 +224,9 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], publisher: Any, out:
         recorder.close()
         if bar is not None:
             bar.close()
-        metrics, stop_errors = master.stop_all()
+        by_component, stop_errors = master.stop_all()
+        metrics = {f"{c}.{k}": v for c in master.order if c in by_component
+                   for k, v in sorted(by_component[c].items())}
         write_json(out / "metrics.json", metrics)
     errors = ([_failure_text(failure)] if failure is not None else []) + stop_errors
     ticks = max(master.ticks_done, 0)

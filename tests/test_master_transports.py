@@ -59,7 +59,7 @@ def test_inproc_and_zenoh_give_identical_files(tmp_path, lag_fmus):
     assert inproc.read_bytes() == zenoh.read_bytes()
     assert len(read_signals(zenoh)[1]) == 101
     metrics = [json.loads((tmp_path / t / "metrics.json").read_text()) for t in ("inproc", "zenoh")]
-    assert metrics[0] == metrics[1] and metrics[0]["controller"] == {"steps": 51.0}
+    assert metrics[0] == metrics[1] and metrics[0] == {"controller.steps": 51.0}
     manifest = json.loads((tmp_path / "zenoh" / "manifest.json").read_text())
     assert manifest["transport"] == "zenoh" and manifest["status"] == "ok"
 
