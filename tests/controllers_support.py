@@ -94,3 +94,38 @@ def run_closed_loop(controller, plant: LinearPlant, path, duration: float, dt: f
         if k < steps:
             plant.step(dt, outputs["delta"], outputs["torque"], wind_fx, wind_fy)
     return {name: np.array(values) for name, values in record.items()}
+
+
+def run_error_model(gains, vx: float, rho: float, duration: float, dt: float = 0.01,
+                    mu: float = 1.0, mu_hat: float = 1.0, start=(0.0, 0.0, 0.0, 0.0),
+                    params=None) -> dict[str, np.ndarray]:
+    """Lateral law in closed loop with the paper's error model at constant speed (RK4, ZOH steer).
+
+    Args:
+        gains: LateralGains; vx: speed; rho: constant curvature; duration, dt: time span and step;
+        mu: plant friction; mu_hat: friction the law uses; start: initial [yL, psiL, vy, r];
+        params: VehicleParams of both law and model (default Table I).
+    Returns arrays "state" (steps+1, 4), "delta", "V2" per step.
+    """
+    from controllers.backstepping_lateral import LateralMeasurement, lateral_law
+    from controllers.linear_plant import error_derivatives
+    from controllers.vehicle_params import VehicleParams
+
+    params = params or VehicleParams()
+    state = np.array(start, dtype=float)
+    states, deltas, v2 = [state], [], []
+    for _ in range(int(round(duration / dt))):
+        meas = LateralMeasurement(*state, vx=vx, vx_dot=0.0, rho=rho, rho_dot=0.0)
+        command = lateral_law(meas, mu_hat, params, gains)
+        deltas.append(command.delta)
+        v2.append(command.V2)
+
+        def rate(s):
+            return error_derivatives(params, s, vx, rho, command.delta, mu, gains.ls)
+        k1 = rate(state)
+        k2 = rate(state + 0.5 * dt * k1)
+        k3 = rate(state + 0.5 * dt * k2)
+        k4 = rate(state + dt * k3)
+        state = state + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        states.append(state)
+    return {"state": np.array(states), "delta": np.array(deltas), "V2": np.array(v2)}
