@@ -45,10 +45,11 @@ def built_fmu(out_dir: Path, model: str, version: int) -> tuple[Path, str]:
 class Plant:
     """One instance of an FMU (FMI 2.0 or 3.0), with captured log messages.
 
-    :param path: the .fmu file; :param unzip_dir: where it was extracted.
+    :param path: the .fmu file; :param unzip_dir: where it was extracted;
+    :param logging_on: FMI loggingOn (debug messages).
     """
 
-    def __init__(self, path: Path, unzip_dir: str):
+    def __init__(self, path: Path, unzip_dir: str, logging_on: bool = False):
         self.md = fmpy.read_model_description(str(path))
         self.version = int(self.md.fmiVersion[0])
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
@@ -59,10 +60,10 @@ class Plant:
         if self.version == 2:
             self.fmu = FMU2Slave(**args)
             self._callbacks = self._fmi2_callbacks()
-            self.fmu.instantiate(callbacks=self._callbacks)
+            self.fmu.instantiate(callbacks=self._callbacks, loggingOn=logging_on)
         else:
             self.fmu = FMU3Slave(**args)
-            self.fmu.instantiate(logMessage=self._log3)
+            self.fmu.instantiate(logMessage=self._log3, loggingOn=logging_on)
         self.t = 0.0
 
     def _fmi2_callbacks(self):

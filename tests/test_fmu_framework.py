@@ -188,6 +188,17 @@ def test_bad_set_calls_fail_with_message(fmu_dir, version):
 
 
 @pytest.mark.parametrize("version", [2, 3])
+def test_debug_messages_only_when_logging_is_on(fmu_dir, version):
+    for logging_on in (False, True):
+        plant = Plant(*built_fmu(fmu_dir, "Bicycle", version), logging_on=logging_on)
+        plant.init()
+        plant.fmu.reset()
+        expected = ["Bicycle initialized at t = 0", "Bicycle reset to its start values"]
+        assert plant.messages == (expected if logging_on else [])
+        plant.fmu.freeInstance()
+
+
+@pytest.mark.parametrize("version", [2, 3])
 def test_wrong_communication_point_fails(fmu_dir, version):
     plant = Plant(*built_fmu(fmu_dir, "Bicycle", version))
     plant.init()
@@ -207,11 +218,11 @@ def test_outputs_readable_in_initialization_mode(fmu_dir):
     plant.free()
 
 
-def _model_dir(tmp_path: Path, model_c: str, unit: str = "m") -> Path:
+def _model_dir(tmp_path: Path, model_c: str, unit: str = "m", variability="FIXED") -> Path:
     model_dir = tmp_path / "Broken"
     model_dir.mkdir()
     (model_dir / "variables.def").write_text(
-        f'VAR(a, PARAMETER, FIXED, "{unit}", 1.0, 0.0, 2.0, "a")\n'
+        f'VAR(a, PARAMETER, {variability}, "{unit}", 1.0, 0.0, 2.0, "a")\n'
         'VAR(b, OUTPUT, CONTINUOUS, "m", 0.0, -INFINITY, INFINITY, "b")\n')
     (model_dir / "model.c").write_text(model_c)
     return model_dir
@@ -240,6 +251,22 @@ def test_minimal_model_builds_and_validates(tmp_path):
     assert validate_fmu(str(path)) == []
     res = fmpy.simulate_fmu(str(path), stop_time=1.0, output_interval=0.25)
     np.testing.assert_allclose(res["b"], [1.0, 1.25, 1.5, 1.75, 2.0])
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_tunable_parameter_is_range_checked_in_step_mode(tmp_path, version):
+    path = fmu_build.build_fmu_from(_model_dir(tmp_path, GOOD_MODEL_C, variability="TUNABLE"),
+                                    version, tmp_path / "out")
+    assert validate_fmu(str(path)) == []
+    plant = Plant(path, fmpy.extract(str(path)))
+    plant.init()
+    plant.set({"a": 1.5})
+    assert plant.get(["a"]) == [1.5]
+    with pytest.raises(FMICallException):
+        plant.set({"a": 2.5})
+    assert any("parameter a = 2.5 is outside its valid range [0, 2]" in m
+               for m in plant.messages), plant.messages
+    plant.fmu.freeInstance()
 
 
 def test_compiler_error_raises_with_gcc_message(tmp_path):

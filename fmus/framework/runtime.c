@@ -222,6 +222,7 @@ RtStatus rt_exit_initialization(Instance *inst)
     if (compute_initial(inst, "exitInitializationMode")) return RT_ERROR;
     inst->time = inst->start_time;
     inst->phase = PHASE_STEP;
+    rt_log(inst, LOG_OK, "%s initialized at t = %g", MODEL.identifier, inst->start_time);
     return RT_OK;
 }
 
@@ -261,6 +262,7 @@ RtStatus rt_terminate(Instance *inst)
 RtStatus rt_reset(Instance *inst)
 {
     load_start_values(inst);
+    rt_log(inst, LOG_OK, "%s reset to its start values", MODEL.identifier);
     return RT_OK;
 }
 
@@ -288,6 +290,23 @@ RtStatus rt_get_float64(Instance *inst, const unsigned int vr[], size_t n, doubl
     return RT_OK;
 }
 
+/* A tunable parameter changed in step mode: range and cross-checks at once. */
+static RtStatus set_tunable(Instance *inst, unsigned int vr, double x)
+{
+    const VariableInfo *v = &MODEL.variables[vr];
+    double old = inst->values[vr];
+    if (!(x >= v->min && x <= v->max))
+        return fail(inst, "set: parameter %s = %g is outside its valid range [%g, %g] at t = %.9g",
+                    v->name, x, v->min, v->max, inst->time);
+    inst->values[vr] = x;
+    if (MODEL.validate && MODEL.validate(inst->values, &inst->model_logger) != MODEL_OK) {
+        inst->values[vr] = old;
+        return fail(inst, "set: %s rejected parameter %s = %g at t = %.9g (see above)",
+                    MODEL.identifier, v->name, x, inst->time);
+    }
+    return RT_OK;
+}
+
 static RtStatus set_one(Instance *inst, unsigned int vr, double x)
 {
     if (vr >= MODEL.n_variables)
@@ -303,6 +322,8 @@ static RtStatus set_one(Instance *inst, unsigned int vr, double x)
     if (v->causality == CAUSALITY_INPUT && !(x >= v->min && x <= v->max))
         return fail(inst, "set: input %s = %g is outside its valid range [%g, %g] at t = %.9g",
                     v->name, x, v->min, v->max, inst->time);
+    if (v->causality == CAUSALITY_PARAMETER && inst->phase == PHASE_STEP)
+        return set_tunable(inst, vr, x);
     inst->values[vr] = x;
     return RT_OK;
 }
