@@ -8,9 +8,22 @@ observation of a run's signals.
         hosted.publish(tick, t, names, values)    # live view, cheap when unwatched
 
 `cosim.zenoh_transport.live.watch(run_id, endpoint)` is the watching side.
+The names below are imported lazily, so that a component process (which only
+needs `runner`) starts without loading the master side.
 """
 
-from cosim.inproc import PythonComponentLaunch
-from cosim.zenoh_transport.host import RemoteComponent, ZenohComponents
+from __future__ import annotations
+
+from typing import Any
 
 __all__ = ["PythonComponentLaunch", "RemoteComponent", "ZenohComponents"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in ("ZenohComponents", "RemoteComponent"):
+        from cosim.zenoh_transport import host
+        return getattr(host, name)
+    if name == "PythonComponentLaunch":
+        from cosim.inproc import PythonComponentLaunch
+        return PythonComponentLaunch
+    raise AttributeError(f"module 'cosim.zenoh_transport' has no attribute {name!r}")

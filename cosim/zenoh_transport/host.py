@@ -4,9 +4,10 @@
 processes, shakes hands with each (retrying until every one answers with its
 port declarations) and exposes one `RemoteComponent` per component, which the
 master drives through the `cosim.hosting.HostedComponent` protocol. Each
-exchange puts one request and waits in a blocking `recv()` on the single
-reply subscriber; the watchdog wakes that wait on a death or a missed
-deadline, which then raises `ComponentFailure`.
+exchange puts one request and waits in a blocking `recv()` on the subscriber
+of that component's replies (exact keys: no wildcard on the hot path); the
+watchdog wakes that wait on a death (of any component) or a missed deadline,
+which then raises `ComponentFailure`.
 """
 
 from __future__ import annotations
@@ -37,7 +38,8 @@ class RemoteComponent:
     """A component running in its own process, seen through HostedComponent."""
 
     def __init__(self, host: "ZenohComponents", spec: PythonComponentLaunch,
-                 inputs: tuple[Port, ...], outputs: tuple[Port, ...], pid: int) -> None:
+                 inputs: tuple[Port, ...], outputs: tuple[Port, ...], pid: int,
+                 channel: tuple[Any, Any]) -> None:
         self.name = spec.name
         self.period_ticks = int(spec.period_ticks)
         self.inputs = inputs
@@ -45,8 +47,7 @@ class RemoteComponent:
         self.pid = pid
         self.in_layout = Layout(inputs, "input")
         self.out_layout = Layout(outputs, "output")
-        self.publisher = host.session.declare_publisher(
-            config.request_key(host.run_id, spec.name), express=True)
+        self.publisher, self.replies = channel  # requests out, replies in
         self._host = host
 
     def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
@@ -127,6 +128,10 @@ class ZenohComponents:
             self.session.close()
             self.session = None
 
+    def _session_config(self, endpoint: str) -> zenoh.Config:
+        """Config of the master session listening on `endpoint` (a subclass may add TLS)."""
+        return config.master_config(endpoint, self._connect)
+
     def _spawn(self, spec: PythonComponentLaunch) -> ChildProcess:
         """Start the process of one component (a subclass may start it elsewhere)."""
         return ChildProcess(spec, self.run_id, self.endpoint)
@@ -142,7 +147,7 @@ class ZenohComponents:
         for attempt in range(attempts):
             endpoint = self.endpoint or config.free_tcp_endpoint()
             try:
-                self.session = zenoh.open(config.master_config(endpoint, self._connect))
+                self.session = zenoh.open(self._session_config(endpoint))
             except zenoh.ZError as exc:
                 if attempt + 1 == attempts:
                     raise UserError(f"run {self.run_id!r}: cannot listen on {endpoint}: {exc}") from exc
@@ -150,47 +155,50 @@ class ZenohComponents:
             self.endpoint = endpoint
             break
         self._token = self.session.liveliness().declare_token(config.master_alive_key(self.run_id))
-        self._replies = self.session.declare_subscriber(config.reply_key(self.run_id, "*"))
         self._live = LivePublisher(self.session, self.run_id)
 
     # ----------------------------------------------------------------- handshake
     def _handshake(self) -> None:
         """Send HELLO to every silent component until all have sent their ports."""
         pending = {spec.name: spec for spec in self.specs}
-        publishers = {name: self.session.declare_publisher(config.request_key(self.run_id, name))
-                      for name in pending}
+        channels = {name: (self.session.declare_publisher(config.request_key(self.run_id, name),
+                                                          express=True),
+                           self.session.declare_subscriber(config.reply_key(self.run_id, name)))
+                    for name in pending}
         hello = HEADER.pack(Kind.HELLO, 0, -1, 0.0)
         end = time.monotonic() + self._startup_timeout_s
         while pending:
             for name in pending:
                 self._check_alive_at_start(name)
-                publishers[name].put(hello)
-            self._collect_hellos(pending, time.monotonic() + HELLO_RETRY_S)
+                channels[name][0].put(hello)
+            self._collect_hellos(pending, channels, time.monotonic() + HELLO_RETRY_S)
             if pending and time.monotonic() > end:
                 name = next(iter(pending))
                 raise ComponentFailure(name, None, 0.0, f"no handshake within "
                                        f"{self._startup_timeout_s:g} s after its process started")
-        for publisher in publishers.values():
-            publisher.undeclare()
 
-    def _collect_hellos(self, pending: dict[str, PythonComponentLaunch], until: float) -> None:
+    def _collect_hellos(self, pending: dict[str, PythonComponentLaunch],
+                        channels: dict[str, tuple[Any, Any]], until: float) -> None:
+        """Take the handshake replies that arrive before `until`."""
         while pending and time.monotonic() < until:
-            sample = self._replies.try_recv()
-            if sample is None:
+            got = False
+            for name in list(pending):
+                sample = channels[name][1].try_recv()
+                if sample is None:
+                    continue
+                got = True
+                data = sample.payload.to_bytes()
+                kind = HEADER.unpack_from(data)[0]
+                if kind == Kind.ERROR:
+                    raise UserError(decode_json(data)["cause"])
+                if kind == Kind.PORTS:
+                    document = decode_json(data)
+                    self.components[name] = RemoteComponent(
+                        self, pending.pop(name), ports_from_json(document["inputs"]),
+                        ports_from_json(document["outputs"]), int(document["pid"]),
+                        channels[name])
+            if not got:
                 time.sleep(0.002)
-                continue
-            data = sample.payload.to_bytes()
-            name = str(sample.key_expr).split("/")[-2]
-            kind = HEADER.unpack_from(data)[0]
-            if name not in pending:
-                continue
-            if kind == Kind.ERROR:
-                raise UserError(decode_json(data)["cause"])
-            if kind == Kind.PORTS:
-                document = decode_json(data)
-                self.components[name] = RemoteComponent(
-                    self, pending.pop(name), ports_from_json(document["inputs"]),
-                    ports_from_json(document["outputs"]), int(document["pid"]))
 
     def _check_alive_at_start(self, name: str) -> None:
         child = self._children[name]
@@ -232,8 +240,10 @@ class ZenohComponents:
         self._seq += 1
         seq = self._seq
         watchdog.arm(seq, remote.name)
+        if watchdog.dead:
+            self._raise_if_dead(tick, t)
         remote.publisher.put(request)
-        recv = self._replies.recv
+        recv = remote.replies.recv
         while True:
             data = recv().payload.to_bytes()
             kind, reply_seq = HEADER.unpack_from(data)[:2]
@@ -257,6 +267,14 @@ class ZenohComponents:
             if name not in self._watchdog.finished:
                 return ComponentFailure(name, tick, t, document["cause"])
         return None
+
+    def _raise_if_dead(self, tick: int | None, t: float) -> None:
+        """Raise the failure of a component that died (and was not stopped) since."""
+        assert self._watchdog is not None
+        for name, cause in list(self._watchdog.dead.items()):
+            if name not in self._watchdog.finished:
+                self._watchdog.disarm()
+                raise self._fail(ComponentFailure(name, tick, t, cause))
 
     def _fail(self, failure: ComponentFailure) -> ComponentFailure:
         self._failed[failure.component] = failure

@@ -3,9 +3,10 @@
 The master waits for replies with a blocking `recv()` in its main thread (the
 fastest way, DESIGN.md). This thread watches what that loop cannot: liveliness
 tokens that vanish (a killed process: within milliseconds), local processes
-that exit, and the per-exchange deadline (a hung or SIGSTOPped process). On
-any of them it puts a DIED or TIMEOUT message on the reply key of the
-component concerned, so the main thread wakes up and raises the failure.
+that exit, and the per-exchange deadline (a hung or SIGSTOPped process). A
+death is recorded in `dead` (the master checks it before each exchange), then
+a DIED or TIMEOUT message goes to the reply key of the component the master
+is waiting for, so its blocked receive wakes up and raises the failure.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ class Watchdog:
         self._tokens = session.liveliness().declare_subscriber(config.alive_key(run_id, "*"))
         self._armed: tuple[int, float, str] | None = None
         self._fired_seq = -1
-        self._reported: set[str] = set()
+        self.dead: dict[str, str] = {}    # component -> cause, in order of death
         self.finished: set[str] = set()   # components that ended normally: not failures
         self._halt = threading.Event()
         self._thread = threading.Thread(target=self._loop, name=f"cosim-watchdog-{run_id}",
@@ -95,7 +96,7 @@ class Watchdog:
         self._fired_seq = seq
         cause = (f"no reply within the deadline of {self._deadline_s:g} s "
                  f"(process hung or stopped)")
-        self._wake(name, Kind.TIMEOUT, seq, cause)
+        self._wake(name, Kind.TIMEOUT, seq, name, cause)
 
     def _wait_exit_code(self, child: ChildProcess) -> None:
         end = time.monotonic() + EXIT_CODE_WAIT_S
@@ -103,13 +104,16 @@ class Watchdog:
             time.sleep(0.005)
 
     def _report_died(self, name: str) -> None:
-        if name in self._reported or name in self.finished:
+        if name in self.dead or name in self.finished:
             return
-        self._reported.add(name)
         child = self._children.get(name)
         cause = child.describe_exit() if child else "process vanished (liveliness token lost)"
-        self._wake(name, Kind.DIED, -1, cause)
+        self.dead[name] = cause  # first: the master may check it before we read `_armed`
+        armed = self._armed
+        if armed is not None:
+            self._wake(armed[2], Kind.DIED, armed[0], name, cause)
 
-    def _wake(self, name: str, kind: int, seq: int, cause: str) -> None:
+    def _wake(self, waiting: str, kind: int, seq: int, name: str, cause: str) -> None:
+        """Put a message for exchange `seq` on the reply key of component `waiting`."""
         message = encode_json(kind, seq, -1, 0.0, {"component": name, "cause": cause})
-        self._session.put(config.reply_key(self._run_id, name), message)
+        self._session.put(config.reply_key(self._run_id, waiting), message)
