@@ -18,6 +18,7 @@ import platform
 import shutil
 import subprocess
 import tempfile
+import threading
 import zipfile
 from pathlib import Path
 
@@ -167,8 +168,8 @@ def _zip_add(zf: zipfile.ZipFile, name: str, data: bytes) -> None:
 def _write_fmu(path: Path, entries: dict[str, bytes]) -> None:
     """Write the zip atomically (temp file + rename), entries in sorted order."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    os.close(fd)
+    # not mkstemp: its 0600 mode would survive the rename; the umask applies here
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
     try:
         with zipfile.ZipFile(tmp, "w") as zf:
             for name in sorted(entries):

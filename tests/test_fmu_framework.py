@@ -208,6 +208,17 @@ def test_wrong_communication_point_fails(fmu_dir, version):
     plant.fmu.freeInstance()
 
 
+def test_fmi3_time_variable_and_unknown_value_reference(fmu_dir):
+    plant = Plant(*built_fmu(fmu_dir, "Bicycle", 3))
+    plant.init(t0=2.0)
+    plant.run({}, 3, k0=200)
+    assert plant.fmu.getFloat64([plant.vr["time"]]) == [202 * 0.01 + 0.01]  # t_k + h
+    with pytest.raises(FMICallException):
+        plant.fmu.getFloat64([999])
+    assert any("unknown value reference 999" in m for m in plant.messages)
+    plant.fmu.freeInstance()
+
+
 def test_outputs_readable_in_initialization_mode(fmu_dir):
     plant = Plant(*built_fmu(fmu_dir, "Bicycle", 2))
     plant.set({"vx0": 12.0, "x0": 5.0})
