@@ -159,12 +159,12 @@ def schema() -> None:
 @app.command("build-fmus")
 def build_fmus(out: Optional[Path] = typer.Option(None, "--out", help="output folder")) -> None:
     """Build the built-in FMUs."""
-    from cosim.fmu_build import build_all
+    from cosim.fmu_build import FmuBuildError, build_all
 
     try:
         paths = build_all(out)
-    except UserError as error:
-        raise _fail(error) from None
+    except (UserError, FmuBuildError) as error:
+        raise _fail(UserError(str(error))) from None
     for path in paths:
         print(path)
 

@@ -15,6 +15,7 @@ import contextlib
 import time
 import uuid
 from dataclasses import dataclass, field
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -58,6 +59,8 @@ class PreparedRun:
     fmus: list[FmuPlan]
     launches: list[PythonComponentLaunch]
     names: list[str]
+    placement: dict[str, str] = field(default_factory=dict)
+    deploy: Any = None
 
 
 @dataclass
@@ -109,9 +112,13 @@ def _plan_fmu(scenario: Any, name: str, spec: Any) -> FmuPlan:
 
     where = scenario.resolve_fmu_path(spec)
     if isinstance(where, str):
-        from cosim.fmu_build import ensure_fmu
+        from cosim.fmu_build import FmuBuildError, ensure_fmu
 
-        path = Path(ensure_fmu(where))
+        try:
+            path = Path(ensure_fmu(where))
+        except FmuBuildError as exc:
+            raise UserError(f"{scenario.where(('components', name, 'fmu'))}: cannot build "
+                            f"the built-in FMU {where!r}: {exc}") from exc
     else:
         path = Path(where)
     origin = scenario.where(("components", name, "variables"))
@@ -132,16 +139,15 @@ def _start_values(interface: Any) -> dict[str, float]:
 
 
 def _check_hosts(scenario: Any) -> None:
-    specs = {**scenario.fmu_components(), **scenario.python_components()}
-    remote = sorted(f"{n} (host {s.host!r})" for n, s in specs.items() if s.host != "local")
-    if remote:
-        raise UserError("components placed on other hosts are not supported by this "
-                        "`cosim run` yet: " + ", ".join(remote) + "; use host: local")
+    from cosim.placement import resolve_placement
+
+    resolve_placement(scenario)  # unknown worker names and FMUs on workers fail here
 
 
 def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  realtime: float | None = None, progress: bool = True,
-                 deadline_s: float = DEFAULT_DEADLINE_S) -> RunResult:
+                 deadline_s: float = DEFAULT_DEADLINE_S, place: Sequence[str] = (),
+                 deploy: Any = None) -> RunResult:
     """Run a scenario and write its run folder.
 
     Args:
@@ -151,6 +157,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         realtime: pace to wall clock at this factor (1.0 = real time); None: as fast as possible.
         progress: draw a progress bar (on stderr).
         deadline_s: per-tick deadline of remote components (zenoh).
+        place: `--place COMPONENT=WORKER` values (override the scenario's `host:`).
+        deploy: cosim.deploy.DeploySettings (endpoints, TLS, ACL), or None.
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -160,6 +168,13 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
     if transport not in TRANSPORTS:
         raise UserError(f"unknown transport {transport!r} (choose from {', '.join(TRANSPORTS)})")
     prepared = prepare_run(scenario)
+    from cosim.placement import resolve_placement
+
+    prepared.placement = resolve_placement(scenario, place)
+    prepared.deploy = deploy
+    if prepared.placement and transport != "zenoh":
+        raise UserError("components placed on workers need --transport zenoh: "
+                        + ", ".join(f"{c} on {w!r}" for c, w in prepared.placement.items()))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     run_id = uuid.uuid4().hex[:12]
@@ -182,7 +197,14 @@ def _start_hosts(prepared: PreparedRun, transport: str, run_id: str, deadline_s:
         except ImportError as exc:
             raise UserError(f"the zenoh transport is not available ({exc}); "
                             "use --transport inproc") from exc
-        publisher = stack.enter_context(ZenohComponents(prepared.launches, run_id, deadline_s))
+        if prepared.placement or prepared.deploy is not None:
+            from cosim.worker_client import DistributedComponents
+
+            publisher = stack.enter_context(DistributedComponents(
+                prepared.launches, run_id, deadline_s, placement=prepared.placement,
+                settings=prepared.deploy))
+        else:
+            publisher = stack.enter_context(ZenohComponents(prepared.launches, run_id, deadline_s))
         hosted.update(publisher.components)
     else:
         hosted.update({l.name: InprocComponent(l) for l in prepared.launches})
@@ -212,6 +234,7 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], publisher: Any, out:
     master, recorder, pacer, bar = _build_master(scenario, hosted, publisher, out,
                                                  realtime, progress)
     manifest = base_manifest(scenario, prepared, hosted, transport, run_id, master.order)
+    manifest["hosts"].update(getattr(publisher, "hosts", {}))
     write_json(out / "manifest.json", manifest)
     failure: BaseException | None = None
     started = time.perf_counter()

@@ -219,3 +219,38 @@ def test_failure_during_initialization_is_named():
     comps = {"bad": inproc("bad", Misbehaving, mode="nan", at=0)}
     with pytest.raises(ComponentFailure, match="failed during initialization .*'y' is non-finite"):
         Master(comps, [], tick=0.5, total_ticks=5).run()
+
+
+class Relay(Component):
+    """o = i + 1."""
+
+    inputs = (Port("i"),)
+    outputs = (Port("o"),)
+
+    def step(self, t, inputs):
+        return {"o": inputs["i"] + 1.0}
+
+
+def test_three_component_loop_is_named_in_order_and_a_delay_breaks_it():
+    comps = {n: inproc(n, Relay) for n in ("a", "b", "c")}
+    loop = [Edge("a", "o", "b", "i", 0), Edge("b", "o", "c", "i", 0), Edge("c", "o", "a", "i", 0)]
+    with pytest.raises(WiringError, match=r"algebraic loop .*: a -> b -> c -> a;"):
+        Master(comps, loop, tick=1.0, total_ticks=1)
+    broken = loop[:2] + [Edge("c", "o", "a", "i", 1)]
+    master = Master(comps, broken, tick=1.0, total_ticks=2, trace=True)
+    master.run()
+    assert master.order == ["a", "b", "c"]
+    assert [(k, n, i["i"]) for k, n, i in master.trace] == [
+        (0, "a", 0.0), (0, "b", 1.0), (0, "c", 2.0),
+        (1, "a", 3.0), (1, "b", 4.0), (1, "c", 5.0),
+        (2, "a", 6.0), (2, "b", 7.0), (2, "c", 8.0)]
+
+
+def test_wiring_size_mismatch_and_double_feed_are_refused():
+    comps = {"clock": inproc("clock", Clock), "bad": inproc("bad", Misbehaving, mode="", at=0),
+             "sum": inproc("sum", Sum)}
+    with pytest.raises(WiringError, match="size 3 does not match size 1"):
+        Master(comps, [Edge("bad", "w", "sum", "a", 0)], tick=1.0, total_ticks=1)
+    with pytest.raises(WiringError, match="input sum.a is fed twice"):
+        Master(comps, [Edge("clock", "a", "sum", "a", 0), Edge("bad", "y", "sum", "a", 0)],
+               tick=1.0, total_ticks=1)
