@@ -176,6 +176,8 @@ class ZenohComponents:
                 name = next(iter(pending))
                 raise ComponentFailure(name, None, 0.0, f"no handshake within "
                                        f"{self._startup_timeout_s:g} s after its process started")
+        # declaration order, not the order the answers happened to arrive in
+        self.components = {spec.name: self.components[spec.name] for spec in self.specs}
 
     def _collect_hellos(self, pending: dict[str, PythonComponentLaunch],
                         channels: dict[str, tuple[Any, Any]], until: float) -> None:
