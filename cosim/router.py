@@ -1,0 +1,45 @@
+"""`cosim router`: a Zenoh router for networks where peers cannot reach each other.
+
+Masters, workers and component processes that connect to the router reach
+each other through it (Zenoh routes between the peers attached to a router),
+so only the router needs an address everyone can reach. It runs from Python
+alone (mode "router"; `zenohd` is not on PyPI) and follows the same
+deployment settings (TLS, ACL) as the other sessions.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+
+import zenoh
+
+from cosim.deploy import DeploySettings, zenoh_config
+from cosim.errors import UserError
+
+
+def run_router(settings: DeploySettings, stop_event: threading.Event | None = None,
+               ready: threading.Event | None = None) -> None:
+    """Serve as a router until `stop_event` is set or SIGTERM/SIGINT arrives.
+
+    Args:
+        settings: `listen` endpoints (at least one), `connect` (other routers), TLS, ACL.
+        stop_event: set it to end the router (None: only signals end it).
+        ready: set once the router listens.
+    """
+    if not settings.listen:
+        raise UserError("cosim router needs at least one --listen ENDPOINT")
+    stop_event = stop_event or threading.Event()
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(sig, lambda *_: stop_event.set())
+    conf = zenoh_config(settings, "router", settings.listen, settings.connect)
+    try:
+        session = zenoh.open(conf)
+    except zenoh.ZError as exc:
+        raise UserError(f"router cannot listen on {settings.listen}: {exc}") from None
+    with session:
+        if ready is not None:
+            ready.set()
+        while not stop_event.wait(0.2):
+            pass

@@ -1,0 +1,216 @@
+"""`cosim worker`: a long-running agent that starts components on its host for masters.
+
+    worker = Worker("w1", settings, allow=["controllers.", "cosim.sources"])
+    worker.serve()              # until SIGTERM / SIGINT or `stop_event` is set
+
+The worker opens one Zenoh peer session (endpoints, TLS and ACL from the
+deployment settings), declares a liveliness token and a queryable under
+`cosim/workers/<name>` and answers the requests of `cosim.worker_protocol`.
+A start request spawns the ordinary component runner
+(`cosim.zenoh_transport.runner`) as a child process that connects back to the
+master's endpoints; from then on master and component talk directly, the
+worker only watches: when a child ends it puts an exit notice (exit code and
+last output) on the run's key, so the master learns why. Only classes from
+allowed module prefixes are started; the worker itself never imports what a
+request names. A run's failure never ends the worker.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import zenoh
+
+from cosim import worker_protocol as proto
+from cosim.deploy import DeploySettings, check_endpoint, zenoh_config, zenoh_settings
+from cosim.errors import UserError
+from cosim.inproc import PythonComponentLaunch
+from cosim.zenoh_transport.config import check_key_chunk
+from cosim.zenoh_transport.processes import ChildProcess
+
+POLL_S = 0.005
+REAP_POLL_S = 0.05
+STOP_GRACE_S = 1.5
+
+
+class Worker:
+    """One worker agent.
+
+    Args:
+        name: the worker's name (a key chunk: letters, digits, '_', '.', '-').
+        settings: endpoints, TLS and ACL of its session.
+        allow: module prefixes of the component classes it may start.
+    """
+
+    def __init__(self, name: str, settings: DeploySettings | None = None,
+                 allow: Sequence[str] = proto.DEFAULT_ALLOW) -> None:
+        self.name = check_key_chunk(name, "worker name")
+        self.settings = settings or DeploySettings()
+        self.allow = tuple(allow) or proto.DEFAULT_ALLOW
+        self.host = socket.gethostname()
+        self._children: dict[tuple[str, str], ChildProcess] = {}
+        self._lock = threading.Lock()
+        self._session: Any = None
+
+    # ------------------------------------------------------------------ serving
+    def serve(self, stop_event: threading.Event | None = None,
+              ready: threading.Event | None = None) -> None:
+        """Answer requests until `stop_event` is set (or SIGTERM/SIGINT in the main thread).
+
+        Args:
+            stop_event: set it to end the worker (None: only signals end it).
+            ready: set once the queryable and token are declared.
+        """
+        stop_event = stop_event or threading.Event()
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGTERM, signal.SIGINT):
+                signal.signal(sig, lambda *_: stop_event.set())
+        conf = zenoh_config(self.settings, "peer", self.settings.listen, self.settings.connect)
+        try:
+            session = zenoh.open(conf)
+        except zenoh.ZError as exc:
+            raise UserError(f"worker {self.name!r}: cannot open its Zenoh session "
+                            f"(listen {self.settings.listen}, connect {self.settings.connect}): "
+                            f"{exc}") from None
+        with session:
+            self._session = session
+            token = session.liveliness().declare_token(proto.worker_key(self.name))
+            queryable = session.declare_queryable(proto.worker_key(self.name))
+            reaper = threading.Thread(target=self._reap_loop, args=(stop_event,),
+                                      name="cosim-worker-reaper", daemon=True)
+            reaper.start()
+            if ready is not None:
+                ready.set()
+            try:
+                self._answer_until(queryable, stop_event)
+            finally:
+                stop_event.set()
+                reaper.join()
+                self._stop_all()
+                queryable.undeclare()
+                token.undeclare()
+
+    def _answer_until(self, queryable: Any, stop_event: threading.Event) -> None:
+        while not stop_event.is_set():
+            query = queryable.try_recv()
+            if query is None:
+                time.sleep(POLL_S)
+                continue
+            try:
+                reply = self.handle(query.payload.to_bytes() if query.payload else b"")
+                query.reply(proto.worker_key(self.name), proto.encode(reply))
+            finally:
+                query.drop()
+
+    # ------------------------------------------------------------------ requests
+    def handle(self, data: bytes) -> dict[str, Any]:
+        """The reply to one request (never raises for a bad request).
+
+        Args:
+            data: the request payload (JSON, see cosim.worker_protocol).
+        """
+        try:
+            request = proto.decode(data, f"request to worker {self.name!r}")
+            op = request.get("op")
+            if op == "info":
+                return self.info()
+            if op == "start":
+                return {"ok": True, "pid": self._start(request)}
+            if op == "stop":
+                return {"ok": True, "exit_code": self._stop(request)}
+            raise ValueError(f"unknown op {op!r} (info, start, stop)")
+        except (ValueError, UserError, KeyError, TypeError) as exc:
+            text = str(exc)
+            if not text.startswith(f"worker {self.name!r}"):
+                text = f"worker {self.name!r} on host {self.host!r}: {text}"
+            return {"ok": False, "error": text}
+
+    def info(self) -> dict[str, Any]:
+        """What `cosim workers` shows of this worker."""
+        with self._lock:
+            running = len(self._children)
+        return {"ok": True, "name": self.name, "host": self.host, "pid": os.getpid(),
+                "allow": list(self.allow), "running": running, "listen": self.settings.listen}
+
+    def _start(self, request: dict[str, Any]) -> int:
+        run_id = check_key_chunk(request["run_id"], "run_id")
+        component = check_key_chunk(request["component"], "component name")
+        class_path = str(request["class_path"])
+        if not proto.module_allowed(class_path, self.allow):
+            raise UserError(f"worker {self.name!r} on host {self.host!r} refuses component "
+                            f"{component!r}: module {class_path.partition(':')[0]!r} is not "
+                            f"in its allow-list ({', '.join(self.allow)}); start the worker "
+                            f"with --allow to permit it")
+        connect = [check_endpoint(str(e)) for e in request["connect"]]
+        if not connect:
+            raise ValueError("start request without a master endpoint")
+        launch = PythonComponentLaunch(component, class_path, dict(request.get("parameters", {})),
+                                       int(request.get("period_ticks", 1)))
+        session_conf = zenoh_settings(self.settings, "peer", [],
+                                      list(dict.fromkeys([*connect, *self.settings.connect])))
+        with self._lock:
+            if (run_id, component) in self._children:
+                raise ValueError(f"component {component!r} of run {run_id!r} already runs here")
+            child = ChildProcess(launch, run_id, connect[0],
+                                 ["--zenoh-config", json.dumps(session_conf)])
+            self._children[(run_id, component)] = child
+        return child.pid
+
+    def _stop(self, request: dict[str, Any]) -> int | None:
+        key = (str(request["run_id"]), str(request["component"]))
+        with self._lock:
+            child = self._children.get(key)
+        if child is None:
+            return None  # already ended (and reported)
+        _end_process(child)
+        return child.exit_code()
+
+    # ------------------------------------------------------------------ children
+    def _reap_loop(self, stop_event: threading.Event) -> None:
+        while not stop_event.wait(REAP_POLL_S):
+            with self._lock:
+                ended = [(k, c) for k, c in self._children.items() if c.exit_code() is not None]
+                for key, _ in ended:
+                    del self._children[key]
+            for (run_id, component), child in ended:
+                self._notify_exit(run_id, component, child)
+
+    def _notify_exit(self, run_id: str, component: str, child: ChildProcess) -> None:
+        notice = {"worker": self.name, "host": self.host, "exit_code": child.exit_code(),
+                  "cause": child.describe_exit()}
+        child.close_log()
+        try:
+            self._session.put(proto.exit_key(run_id, component), proto.encode(notice))
+        except zenoh.ZError:
+            pass  # session closing: nobody listens any more
+
+    def _stop_all(self) -> None:
+        with self._lock:
+            children = list(self._children.values())
+            self._children.clear()
+        for child in children:
+            _end_process(child)
+            child.close_log()
+
+
+def _end_process(child: ChildProcess) -> None:
+    """SIGTERM (and SIGCONT) a child, SIGKILL it after a grace period; always waits."""
+    if child.exit_code() is None:
+        try:
+            child.popen.terminate()
+            child.popen.send_signal(signal.SIGCONT)
+        except ProcessLookupError:
+            pass
+    try:
+        child.popen.wait(timeout=STOP_GRACE_S)
+    except subprocess.TimeoutExpired:
+        child.popen.kill()
+        child.popen.wait()

@@ -1,0 +1,109 @@
+"""The distributed-run commands of the `cosim` CLI: worker, workers, router.
+
+`register(app)` adds them to the Typer app of `cosim.cli`; the endpoint
+options mean the same everywhere and add to those of a `--deploy` file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from cosim.errors import UserError
+
+
+def load_settings(deploy: Optional[Path], listen: list[str], connect: list[str]) -> Any:
+    """Deployment settings from `--deploy FILE` plus `--listen/--connect` (command line first).
+
+    Args:
+        deploy: the deployment YAML, or None.
+        listen / connect: endpoints from the command line.
+    """
+    from cosim.deploy import load_deploy, merge_endpoints
+
+    return merge_endpoints(load_deploy(deploy) if deploy else None, listen, connect)
+
+
+def _error(error: UserError) -> typer.Exit:
+    Console(stderr=True, highlight=False, soft_wrap=True).print(f"[red]error:[/red] {error}",
+                                                                 markup=True)
+    return typer.Exit(2)
+
+
+def worker(
+    name: str = typer.Option(..., "--name", help="worker name, used in --place and host:"),
+    listen: list[str] = typer.Option([], "--listen", help="endpoint to accept masters on"),
+    connect: list[str] = typer.Option([], "--connect", help="endpoint to join (a router)"),
+    allow: list[str] = typer.Option([], "--allow",
+                                    help="allowed module prefix (default: controllers., "
+                                         "cosim.sources), repeatable"),
+    deploy: Optional[Path] = typer.Option(None, "--deploy", help="deployment settings YAML"),
+) -> None:
+    """Serve as a worker: start components on this host for masters that ask."""
+    from cosim import worker_protocol
+    from cosim.worker import Worker
+
+    try:
+        settings = load_settings(deploy, listen, connect)
+        agent = Worker(name, settings, allow or worker_protocol.DEFAULT_ALLOW)
+    except (UserError, ValueError) as error:
+        raise _error(UserError(str(error))) from None
+    print(f"worker {agent.name!r} on {agent.host}: listen {settings.listen or '-'}, "
+          f"connect {settings.connect or '-'}, allow {', '.join(agent.allow)}", flush=True)
+    try:
+        agent.serve()
+    except UserError as error:
+        raise _error(error) from None
+
+
+def workers(
+    connect: list[str] = typer.Option([], "--connect", help="endpoint of a worker or router"),
+    deploy: Optional[Path] = typer.Option(None, "--deploy", help="deployment settings YAML"),
+    timeout: float = typer.Option(1.0, "--timeout", help="seconds to look for workers"),
+) -> None:
+    """List the workers that can be reached."""
+    from cosim.worker_client import list_workers
+
+    try:
+        found = list_workers(load_settings(deploy, [], connect), timeout)
+    except UserError as error:
+        raise _error(error) from None
+    table = Table(title=f"{len(found)} worker(s)")
+    for column in ("name", "host", "pid", "allowed modules", "running"):
+        table.add_column(column)
+    for info in found:
+        table.add_row(str(info["name"]), str(info.get("host")), str(info.get("pid")),
+                      ", ".join(info.get("allow", [])), str(info.get("running")))
+    Console(highlight=False).print(table)
+
+
+def router(
+    listen: list[str] = typer.Option([], "--listen", help="endpoint to listen on"),
+    connect: list[str] = typer.Option([], "--connect", help="another router to join"),
+    deploy: Optional[Path] = typer.Option(None, "--deploy", help="deployment settings YAML"),
+) -> None:
+    """Run a Zenoh router (for networks where peers cannot reach each other)."""
+    from cosim.router import run_router
+
+    try:
+        settings = load_settings(deploy, listen or ([] if deploy else ["tcp/0.0.0.0:7447"]),
+                                 connect)
+        print(f"router listening on {', '.join(settings.listen)}", flush=True)
+        run_router(settings)
+    except UserError as error:
+        raise _error(error) from None
+
+
+def register(app: typer.Typer) -> None:
+    """Add the worker, workers and router commands to `app`.
+
+    Args:
+        app: the `cosim` Typer application.
+    """
+    app.command("worker")(worker)
+    app.command("workers")(workers)
+    app.command("router")(router)
