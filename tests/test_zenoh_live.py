@@ -19,13 +19,15 @@ pytestmark = [pytest.mark.integration, pytest.mark.timeout(60)]
 WATCHER = """
 import json, sys
 from cosim.zenoh_transport.live import watch
-for tick, t, values in watch(sys.argv[1], sys.argv[2]):
+for n, (tick, t, values) in enumerate(watch(sys.argv[1], sys.argv[2]), 1):
     print(json.dumps([tick, t.hex(), {k: v.hex() for k, v in values.items()}]), flush=True)
+    if n == int(sys.argv[3]):
+        break
 """
 
 
-def start_watcher(run_id: str, endpoint: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-c", WATCHER, run_id, endpoint],
+def start_watcher(run_id: str, endpoint: str, count: int = -1) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-c", WATCHER, run_id, endpoint, str(count)],
                             stdout=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONPATH": os.getcwd()})
 
@@ -57,6 +59,25 @@ def test_watcher_sees_every_tick_exactly():
         watcher.kill()
     seen = [json.loads(line) for line in out.splitlines()]
     assert seen == published
+
+
+def test_watching_any_run_with_a_star_and_changing_names():
+    run_id, endpoint = f"t-live-star-{os.getpid()}", free_tcp_endpoint()
+    watcher = start_watcher("*", endpoint, count=5)
+    try:
+        with ZenohComponents([], run_id, endpoint=endpoint) as hosted:
+            wait_for_watcher(hosted)
+            for k in range(1, 3):
+                hosted.publish(k, k * 0.5, ["a", "b"], np.array([k, -k], dtype=float))
+            out = [watcher.stdout.readline() for _ in range(2)]  # seen before the names change
+            for k in range(3, 6):
+                hosted.publish(k, k * 0.5, ["a", "b", "c"], np.array([k, -k, 0.0]))
+            out += watcher.communicate(timeout=30)[0].splitlines()
+    finally:
+        watcher.kill()
+    assert [json.loads(line) for line in out] == [
+        [k, (k * 0.5).hex(), {"a": float(k).hex(), "b": float(-k).hex()}
+         | ({"c": "0x0.0p+0"} if k >= 3 else {})] for k in range(1, 6)]
 
 
 def test_publish_checks_names_against_values_when_watched():

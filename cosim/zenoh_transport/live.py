@@ -120,5 +120,7 @@ def watch(run_id: str = "*", endpoint: str = "tcp/127.0.0.1:7447"
                 continue
             if run not in names or names[run][0] != version:
                 names[run] = _fetch_names(session, run)
+                if names[run][0] != version:
+                    continue  # names changed again since this sample: its names are gone
             values = np.frombuffer(data, dtype="<f8", offset=HEADER.size).tolist()
             yield tick, t, dict(zip(names[run][1], values))
