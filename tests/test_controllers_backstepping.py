@@ -131,3 +131,12 @@ def test_bad_inputs_and_parameters_give_clear_errors():
         BacksteppingController(mu0=1.5)
     with pytest.raises(ComponentError, match=r"min_torque \(10.0\) must be < max_torque \(5.0\)"):
         BacksteppingController(min_torque=10.0, max_torque=5.0)
+
+
+def test_outputs_are_exactly_the_declared_ports():
+    window = make_window(CirclePath(50.0), -5.0).to_signals("ref")
+    controller = BacksteppingController(adaptive=True, lateral_law="feedforward")
+    out = controller.initialize(0.0, plant_values(y=0.3) | window)
+    assert list(out) == [port.name for port in controller.outputs]
+    assert all(type(value) is float for value in out.values())
+    assert out["rho"] == pytest.approx(1.0 / 50.0)
