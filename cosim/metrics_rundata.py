@@ -96,12 +96,14 @@ class RunData:
         time: the master tick times (rows,).
         columns: `<component>.<signal>` -> values (rows,).
         manifest: manifest.json as a dict ({} when absent).
+        label_override: legend name to use instead of the folder's name.
     """
 
     run_dir: Path
     time: np.ndarray
     columns: dict[str, np.ndarray]
     manifest: dict[str, Any]
+    label_override: str | None = None
     _arrays: dict[str, ArraySignal | None] = field(default_factory=dict)
 
     @property
@@ -112,8 +114,8 @@ class RunData:
 
     @property
     def label(self) -> str:
-        """A short name for legends: the run folder's name."""
-        return self.run_dir.resolve().name
+        """A short name for legends: `label_override` if set, else the folder's name."""
+        return self.label_override or self.run_dir.resolve().name
 
     def signal(self, name: str) -> np.ndarray | None:
         """The column `name` ("component.signal"), or None when not recorded."""

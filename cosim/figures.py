@@ -1,0 +1,154 @@
+"""Paper-style figures of a run (or several runs overlaid), saved as PNG.
+
+Two layouts, after the paper:
+- "track" (Fig. 4): nine panels, 3 x 3: x-y map with the planned path,
+  curvature rho, speed tracking vx vs vx_ref, yL, psiL, yc, zoom on tracking,
+  mu_hat vs true mu, steering angle delta.
+- "manoeuvre" (Fig. 5/6): seven panels: the map across the top with the
+  planner's recommended and alternative windows, then curvature, yL, psiL,
+  steering angle, speed tracking and the reference acceleration force m a_ref.
+
+The layout comes from the scenario's `metrics.figures` ("track" or
+"manoeuvre") when given; else a scenario name with "lane", "obstacle",
+"iso3888" or "manoeuvre" in it means manoeuvre; else recorded alternative
+windows that differ from the recommended ones mean manoeuvre; else track.
+Figures are built on matplotlib's Agg backend without pyplot, so drawing
+touches no global state.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from cosim import figures_panels as pan
+from cosim import figures_signals as sig
+from cosim.metrics_rundata import AnalysisError, RunData, load_run
+
+LAYOUTS = ("track", "manoeuvre")
+MANOEUVRE_WORDS = ("lane", "obstacle", "iso3888", "manoeuvre", "maneuver")
+DPI = 110
+
+
+def choose_layout(run: RunData) -> str:
+    """"track" or "manoeuvre" for this run (rules in the module docstring).
+
+    Raises:
+        AnalysisError: the scenario's `metrics.figures` is not a known layout.
+    """
+    hint = run.lookup("metrics.figures")
+    if hint is not None:
+        if hint not in LAYOUTS:
+            raise AnalysisError(f"{run.run_dir / 'manifest.json'}: scenario.metrics.figures: "
+                                f"expected one of {', '.join(LAYOUTS)}, found {hint!r}")
+        return hint
+    name = str(run.lookup("name", "")).lower()
+    if any(word in name for word in MANOEUVRE_WORDS):
+        return "manoeuvre"
+    ref, alt = sig.window(run, "ref"), sig.window(run, "alt")
+    if ref is not None and alt is not None and ref[1].values.shape == alt[1].values.shape:
+        if not np.array_equal(ref[1].values, alt[1].values):
+            return "manoeuvre"
+    return "track"
+
+
+def _delta(ax, runs: Sequence[RunData]) -> None:
+    pan.time_series(ax, runs, lambda r: sig.column(r, "controller.delta"), "delta",
+                    "steering angle", "delta (rad)")
+
+
+def _errors(axes, runs: Sequence[RunData], with_yc: bool) -> None:
+    pan.time_series(axes[0], runs, lambda r: sig.column(r, "controller.yL"), "yL",
+                    "lateral error at preview point", "yL (m)")
+    pan.time_series(axes[1], runs, lambda r: sig.column(r, "controller.psiL"), "psiL",
+                    "heading error", "psiL (rad)")
+    if with_yc:
+        pan.time_series(axes[2], runs, sig.lateral_cg, "yc", "lateral error at CG", "yc (m)")
+
+
+def _speed(ax, runs: Sequence[RunData]) -> None:
+    pan.tracking(ax, runs, lambda r: sig.column(r, "vehicle.vx"), sig.speed_reference,
+                 ("vx", "vx_ref"), "speed tracking", "speed (m/s)")
+
+
+def _curvature(ax, runs: Sequence[RunData]) -> None:
+    pan.time_series(ax, runs, sig.curvature, "rho", "path curvature", "rho (1/m)")
+
+
+def track_figure(runs: Sequence[RunData]) -> Figure:
+    """The Fig. 4 layout (nine panels) for the given runs, overlaid."""
+    fig = Figure(figsize=(15, 12), layout="constrained")
+    axes = fig.subplots(3, 3).ravel()
+    pan.trajectory_map(axes[0], runs)
+    _curvature(axes[1], runs)
+    _speed(axes[2], runs)
+    _errors(axes[3:6], runs, with_yc=True)
+    pan.zoom_map(axes[6], runs)
+    pan.friction(axes[7], runs)
+    _delta(axes[8], runs)
+    fig.suptitle(_title(runs, "track run"))
+    return fig
+
+
+def manoeuvre_figure(runs: Sequence[RunData]) -> Figure:
+    """The Fig. 5/6 layout (map across the top, six panels below) for the given runs."""
+    fig = Figure(figsize=(14, 15), layout="constrained")
+    grid = fig.add_gridspec(4, 2)
+    pan.trajectory_map(fig.add_subplot(grid[0, :]), runs, both_windows=True,
+                       title="road and planned trajectories", equal=False)
+    cells = [fig.add_subplot(grid[r, c]) for r in range(1, 4) for c in range(2)]
+    _curvature(cells[0], runs)
+    _errors(cells[1:3], runs, with_yc=False)
+    _delta(cells[3], runs)
+    _speed(cells[4], runs)
+    pan.acceleration_force(cells[5], runs)
+    fig.suptitle(_title(runs, "manoeuvre"))
+    return fig
+
+
+def _title(runs: Sequence[RunData], kind: str) -> str:
+    if len(runs) > 1:
+        return f"{kind}: " + ", ".join(r.label for r in runs)
+    return f"{kind}: {runs[0].lookup('name', runs[0].label)} ({runs[0].label})"
+
+
+def build_figure(runs: Sequence[RunData], layout: str | None = None) -> tuple[Figure, str]:
+    """The figure of one or several runs, and the layout used.
+
+    Args:
+        runs: loaded runs (at least one); overlaid in order.
+        layout: "track", "manoeuvre" or None to choose from the first run.
+    """
+    if not runs:
+        raise AnalysisError("no run to draw")
+    layout = layout or choose_layout(runs[0])
+    if layout not in LAYOUTS:
+        raise AnalysisError(f"layout: expected one of {', '.join(LAYOUTS)}, found {layout!r}")
+    fig = track_figure(runs) if layout == "track" else manoeuvre_figure(runs)
+    return fig, layout
+
+
+def save_png(fig: Figure, path: Path) -> Path:
+    """Render a figure with Agg into `path` (PNG) and return the path."""
+    FigureCanvasAgg(fig)
+    fig.savefig(path, dpi=DPI, metadata={"Software": None})
+    return path
+
+
+def draw_figures(run_dir: str | Path, layout: str | None = None) -> list[Path]:
+    """Draw the paper-style figure of a run into its folder.
+
+    Args:
+        run_dir: the run folder; the PNG is written there as `figure_<layout>.png`.
+        layout: "track", "manoeuvre" or None to choose from the scenario.
+
+    Returns:
+        The PNG files written.
+    """
+    run = load_run(run_dir)
+    fig, layout = build_figure([run], layout)
+    return [save_png(fig, Path(run_dir) / f"figure_{layout}.png")]

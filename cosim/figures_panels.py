@@ -1,0 +1,166 @@
+"""The panels of the paper-style figures, each drawn for one or several runs.
+
+Every panel function takes a matplotlib Axes and a list of runs and overlays
+the runs in order (colour i for run i), so one code path draws a single run's
+figure and a comparison of runs. A panel whose signal a run did not record
+shows a note in the axes instead of failing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from matplotlib.axes import Axes
+
+from cosim import figures_signals as sig
+from cosim.metrics_rundata import RunData
+
+COLORS = ("tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange", "tab:brown",
+          "tab:pink", "tab:gray", "tab:olive", "tab:cyan")
+Getter = Callable[[RunData], "sig.Series | None"]
+
+
+def color(i: int) -> str:
+    """The colour of run number i."""
+    return COLORS[i % len(COLORS)]
+
+
+def _label(runs: Sequence[RunData], i: int, what: str) -> str:
+    return what if len(runs) == 1 else f"{runs[i].label}: {what}"
+
+
+def _missing(ax: Axes, what: str) -> None:
+    ax.text(0.5, 0.5, f"not recorded: {what}", transform=ax.transAxes,
+            ha="center", va="center", fontsize=8, color="gray")
+
+
+def _finish(ax: Axes, title: str, xlabel: str, ylabel: str) -> None:
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7, loc="best")
+
+
+def time_series(ax: Axes, runs: Sequence[RunData], getter: Getter, what: str,
+                title: str, ylabel: str, scale: float = 1.0) -> None:
+    """One signal against time for every run.
+
+    Args:
+        ax: the axes to draw in.
+        runs: the runs, overlaid in order.
+        getter: run -> (time, values) or None.
+        what: the signal's name, for legends and the missing note.
+        title, ylabel: panel title and y-axis label (with unit).
+        scale: factor applied to the values (e.g. a mass for a force).
+    """
+    drawn = False
+    for i, run in enumerate(runs):
+        found = getter(run)
+        if found is not None:
+            ax.plot(found[0], scale * found[1], color=color(i), lw=1.0, label=_label(runs, i, what))
+            drawn = True
+    if not drawn:
+        _missing(ax, what)
+    _finish(ax, title, "time (s)", ylabel)
+
+
+def tracking(ax: Axes, runs: Sequence[RunData], actual: Getter, reference: Getter,
+             names: tuple[str, str], title: str, ylabel: str) -> None:
+    """A signal and its reference (dashed) against time for every run."""
+    drawn = False
+    for i, run in enumerate(runs):
+        for getter, name, style in ((actual, names[0], "-"), (reference, names[1], "--")):
+            found = getter(run)
+            if found is not None:
+                ax.plot(found[0], found[1], style, color=color(i), lw=1.0,
+                        label=_label(runs, i, name))
+                drawn = True
+    if not drawn:
+        _missing(ax, f"{names[0]}, {names[1]}")
+    _finish(ax, title, "time (s)", ylabel)
+
+
+def _vehicle_xy(run: RunData) -> sig.Series | None:
+    x, y = run.signal("vehicle.x"), run.signal("vehicle.y")
+    return None if x is None or y is None else (x, y)
+
+
+def _windows(ax: Axes, run: RunData, prefix: str, style: dict, label: str, count: int) -> None:
+    """Draw `count` of the run's recorded windows, evenly spread in time."""
+    found = sig.window(run, prefix)
+    if found is None:
+        return
+    xs, ys = found
+    rows = np.unique(np.linspace(0, len(xs.times) - 1, count).round().astype(int))
+    for k, row in enumerate(rows):
+        ax.plot(xs.values[row], ys.values[row], lw=0.8, alpha=0.6,
+                label=label if k == 0 else None, **style)
+
+
+def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False,
+                   title: str = "trajectory (x-y map)", equal: bool = True) -> None:
+    """Vehicle CG path and planned path; with `both_windows`, planner windows too.
+
+    Args:
+        ax: the axes to draw in.
+        runs: the runs, overlaid in order.
+        both_windows: draw sampled recommended (ref) and alternative (alt) windows.
+        title: the panel title.
+        equal: same scale on both axes (off for long straight manoeuvres).
+    """
+    drawn = False
+    for i, run in enumerate(runs):
+        path = sig.path_trace(run, "ref")
+        if path is not None:
+            ax.plot(path[0], path[1], ":", color="k", lw=1.0, label=_label(runs, i, "planned path"))
+        if both_windows:
+            _windows(ax, run, "ref", {"color": "tab:green"}, _label(runs, i, "recommended"), 6)
+            _windows(ax, run, "alt", {"color": "tab:orange", "ls": "--"},
+                     _label(runs, i, "alternative"), 6)
+        xy = _vehicle_xy(run)
+        if xy is not None:
+            ax.plot(xy[0], xy[1], color=color(i), lw=1.2, label=_label(runs, i, "vehicle"))
+            drawn = True
+    if not drawn:
+        _missing(ax, "vehicle.x, vehicle.y")
+    if equal:
+        ax.set_aspect("equal", adjustable="datalim")
+    _finish(ax, title, "x (m)", "y (m)")
+
+
+def zoom_map(ax: Axes, runs: Sequence[RunData], half_width: float = 15.0) -> None:
+    """The map zoomed on the place of the first run's largest |yc|."""
+    trajectory_map(ax, runs, title="zoom on tracking (largest |yc|)")
+    first = runs[0]
+    yc, xy = sig.lateral_cg(first), _vehicle_xy(first)
+    if yc is None or xy is None or len(yc[1]) == 0:
+        return
+    k = int(np.argmax(np.abs(yc[1])))
+    cx, cy = xy[0][k], xy[1][k]
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlim(cx - half_width, cx + half_width)
+    ax.set_ylim(cy - half_width, cy + half_width)
+
+
+def friction(ax: Axes, runs: Sequence[RunData]) -> None:
+    """Friction estimate mu_hat against the true friction (dashed)."""
+    tracking(ax, runs, lambda r: sig.column(r, "controller.mu_hat"),
+             lambda r: sig.friction(r)[0], ("mu_hat", "mu (true)"),
+             "friction estimate", "mu (-)")
+
+
+def acceleration_force(ax: Axes, runs: Sequence[RunData]) -> None:
+    """Reference acceleration force m * a_ref (m: controller's nominal mass)."""
+    drawn = False
+    for i, run in enumerate(runs):
+        found = sig.reference_acceleration(run)
+        if found is not None:
+            ax.plot(found[0], sig.vehicle_mass(run) * found[1], color=color(i), lw=1.0,
+                    label=_label(runs, i, "m a_ref"))
+            drawn = True
+    if not drawn:
+        _missing(ax, "a_ref (controller or planner.ref_a)")
+    _finish(ax, "reference acceleration force", "time (s)", "m a_ref (N)")

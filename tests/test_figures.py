@@ -1,0 +1,134 @@
+"""Figures and run comparison on synthetic run folders: layouts, plotted data, outputs."""
+
+from __future__ import annotations
+
+import csv
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+from analysis_synthetic import lane_change_run, write_run  # noqa: E402
+
+from cosim import figures_signals as sig  # noqa: E402
+from cosim.compare import compare_runs, run_labels  # noqa: E402
+from cosim.figures import build_figure, choose_layout, draw_figures  # noqa: E402
+from cosim.metrics import compute_metrics  # noqa: E402
+from cosim.metrics_rundata import AnalysisError, load_run  # noqa: E402
+
+
+def _axes_by_title(fig):
+    return {ax.get_title(): ax for ax in fig.axes}
+
+
+def _lines(ax):
+    return {line.get_label(): line for line in ax.get_lines()}
+
+
+def test_track_layout_has_nine_panels_with_the_run_data(tmp_path):
+    run = load_run(lane_change_run(tmp_path / "r"))
+    fig, layout = build_figure([run], "track")
+    assert layout == "track" and len(fig.axes) == 9
+    axes = _axes_by_title(fig)
+    yc = _lines(axes["lateral error at CG"])["yc"]
+    np.testing.assert_array_equal(yc.get_ydata(), run.signal("controller.yc"))
+    mu = _lines(axes["friction estimate"])
+    np.testing.assert_array_equal(mu["mu (true)"].get_ydata(), run.signal("road_friction.value"))
+    np.testing.assert_array_equal(mu["mu_hat"].get_ydata(), run.signal("controller.mu_hat"))
+    speed = _lines(axes["speed tracking"])
+    assert set(speed) == {"vx", "vx_ref"}
+    assert all(ax.get_xlabel() and ax.get_ylabel() for ax in fig.axes)
+
+
+def test_manoeuvre_layout_has_seven_panels_with_both_trajectories(tmp_path):
+    run = load_run(lane_change_run(tmp_path / "r"))
+    fig, layout = build_figure([run])
+    assert layout == "manoeuvre" and len(fig.axes) == 7
+    axes = _axes_by_title(fig)
+    road = axes["road and planned trajectories"]
+    alt = [line for line in road.get_lines() if line.get_color() == "tab:orange"]
+    assert alt and all(np.all(line.get_ydata() == 3.5) for line in alt)
+    force = _lines(axes["reference acceleration force"])["m a_ref"]
+    np.testing.assert_allclose(force.get_ydata(), 1500.0 * 0.2)
+
+
+def test_reference_acceleration_takes_the_window_point_nearest_the_vehicle(tmp_path):
+    t = np.array([0.0, 1.0, 2.0])
+    cols = {"vehicle.x": np.array([0.0, 3.2, 7.9]), "vehicle.y": np.zeros(3)}
+    px = np.tile(np.arange(10.0), (3, 1))
+    arrays = {"planner.ref_x": (t, px), "planner.ref_y": (t, np.zeros_like(px)),
+              "planner.ref_a": (t, 0.1 * px)}
+    run = load_run(write_run(tmp_path / "r", t, cols, arrays=arrays))
+    times, a_ref = sig.reference_acceleration(run)
+    np.testing.assert_array_equal(times, t)
+    np.testing.assert_allclose(a_ref, [0.0, 0.3, 0.8])
+
+
+def test_layout_choice_rules(tmp_path):
+    t = np.arange(3.0)
+    assert choose_layout(load_run(write_run(tmp_path / "a", t, {"vehicle.x": t},
+                                            {"name": "satory_nominal"}))) == "track"
+    assert choose_layout(load_run(write_run(tmp_path / "b", t, {"vehicle.x": t},
+                                            {"name": "ISO3888_2"}))) == "manoeuvre"
+    hinted = write_run(tmp_path / "c", t, {"vehicle.x": t},
+                       {"name": "lane_keeping", "metrics": {"figures": "track"}})
+    assert choose_layout(load_run(hinted)) == "track"
+    bad = write_run(tmp_path / "d", t, {"vehicle.x": t}, {"metrics": {"figures": "fig4"}})
+    with pytest.raises(AnalysisError, match=r"scenario\.metrics\.figures: .* found 'fig4'"):
+        choose_layout(load_run(bad))
+    px = np.ones((3, 4))
+    differ = write_run(tmp_path / "e", t, {"vehicle.x": t}, {"name": "drive"}, arrays={
+        "planner.ref_x": (t, px), "planner.ref_y": (t, 0 * px),
+        "planner.alt_x": (t, px), "planner.alt_y": (t, 0 * px + 3.5)})
+    assert choose_layout(load_run(differ)) == "manoeuvre"
+
+
+def test_missing_signals_give_notes_not_errors(tmp_path):
+    t = np.arange(0, 11) * 0.1
+    run = write_run(tmp_path / "r", t, {"vehicle.x": t, "vehicle.y": 0 * t}, {"name": "open_loop"})
+    fig, _ = build_figure([load_run(run)])
+    notes = [txt.get_text() for ax in fig.axes for txt in ax.texts]
+    assert "not recorded: yL" in notes and "not recorded: delta" in notes
+    assert len(fig.axes) == 9
+
+
+def test_draw_figures_writes_a_deterministic_png(tmp_path):
+    run = lane_change_run(tmp_path / "r")
+    (png,) = draw_figures(run)
+    assert png == run / "figure_manoeuvre.png"
+    first = png.read_bytes()
+    assert first[:8] == b"\x89PNG\r\n\x1a\n"
+    draw_figures(run)
+    assert png.read_bytes() == first
+
+
+def test_compare_two_runs_overlays_and_tabulates(tmp_path):
+    a = lane_change_run(tmp_path / "a" / "run")
+    b = lane_change_run(tmp_path / "b" / "run", offset=0.2)
+    (a / "metrics.json").write_text('{"planner_steps": 61, "note": "text is skipped"}')
+    png, csv_path, md_path = compare_runs([a, b], tmp_path / "cmp")
+    assert png.name == "compare_manoeuvre.png" and png.read_bytes()[:4] == b"\x89PNG"
+    with open(csv_path) as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == ["metric", "a/run", "b/run"]
+    table = {row[0]: row[1:] for row in rows[1:]}
+    for col, run in enumerate((a, b)):
+        for name, value in compute_metrics(run).items():
+            assert float(table[name][col]) == value
+    assert float(table["max_abs_yL"][1]) == pytest.approx(0.3)
+    assert table["planner_steps"] == ["61", ""] and "note" not in table
+    assert "| max_abs_yL | 0.1 | 0.3 |" in md_path.read_text()
+
+
+def test_compare_figure_overlays_each_run_and_labels_are_unique(tmp_path):
+    a = lane_change_run(tmp_path / "x" / "run")
+    b = lane_change_run(tmp_path / "y" / "other", offset=0.2)
+    assert run_labels([a, b]) == ["run", "other"]
+    assert run_labels([a, tmp_path / "z" / "run"]) == ["x/run", "z/run"]
+    runs = [load_run(a), load_run(b)]
+    fig, _ = build_figure(runs, "track")
+    lines = _axes_by_title(fig)["lateral error at CG"].get_lines()
+    assert [line.get_label() for line in lines] == ["run: yc", "other: yc"]
+    np.testing.assert_array_equal(lines[1].get_ydata(), runs[1].signal("controller.yc"))
