@@ -24,7 +24,7 @@ import socket
 import subprocess
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import zenoh
@@ -62,12 +62,12 @@ class Worker:
 
     # ------------------------------------------------------------------ serving
     def serve(self, stop_event: threading.Event | None = None,
-              ready: threading.Event | None = None) -> None:
+              on_ready: Callable[[], None] | None = None) -> None:
         """Answer requests until `stop_event` is set (or SIGTERM/SIGINT in the main thread).
 
         Args:
             stop_event: set it to end the worker (None: only signals end it).
-            ready: set once the queryable and token are declared.
+            on_ready: called once the queryable and token are declared.
         """
         stop_event = stop_event or threading.Event()
         if threading.current_thread() is threading.main_thread():
@@ -87,8 +87,8 @@ class Worker:
             reaper = threading.Thread(target=self._reap_loop, args=(stop_event,),
                                       name="cosim-worker-reaper", daemon=True)
             reaper.start()
-            if ready is not None:
-                ready.set()
+            if on_ready is not None:
+                on_ready()
             try:
                 self._answer_until(queryable, stop_event)
             finally:

@@ -55,7 +55,7 @@ def worker(
     print(f"worker {agent.name!r} on {agent.host}: listen {settings.listen or '-'}, "
           f"connect {settings.connect or '-'}, allow {', '.join(agent.allow)}", flush=True)
     try:
-        agent.serve()
+        agent.serve(on_ready=lambda: print(f"worker {agent.name!r} ready", flush=True))
     except UserError as error:
         raise _error(error) from None
 
