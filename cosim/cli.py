@@ -7,10 +7,12 @@ component fails mid-way exits with status 1 after writing what it has.
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import json
+import signal
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Optional
 
@@ -60,6 +62,11 @@ def run(
     realtime: Optional[float] = typer.Option(
         None, "--realtime", help="pace to wall clock at FACTOR (bare --realtime: 1.0)"),
     figures: bool = typer.Option(True, "--figures/--no-figures", help="draw the run's figures"),
+    place: list[str] = typer.Option([], "--place", help="COMPONENT=WORKER (overrides host:), repeatable"),
+    listen: list[str] = typer.Option([], "--listen", help="master endpoint the workers reach"),
+    connect: list[str] = typer.Option([], "--connect", help="worker or router endpoint, repeatable"),
+    deploy: Optional[Path] = typer.Option(None, "--deploy", help="deployment settings YAML (endpoints, TLS, ACL)"),
+    deadline: float = typer.Option(10.0, "--deadline", help="per-exchange deadline of remote components, s"),
 ) -> None:
     """Run a scenario and write its run folder."""
     from cosim.run import run_scenario
@@ -69,8 +76,14 @@ def run(
         loaded = load_scenario(scenario, overrides=set_)
         folder = out if out is not None else default_run_dir(loaded.name)
         print(f"run folder: {folder}", flush=True)
-        result = run_scenario(loaded, folder, transport=transport, realtime=realtime,
-                              progress=sys.stdout.isatty())
+        settings = None
+        if deploy is not None or listen or connect:
+            from cosim.worker_cli import load_settings
+            settings = load_settings(deploy, listen, connect)
+        with _sigterm_interrupts():
+            result = run_scenario(loaded, folder, transport=transport, realtime=realtime,
+                                  progress=sys.stdout.isatty(), place=place, deploy=settings,
+                                  deadline_s=deadline)
     except UserError as error:
         raise _fail(error) from None
     if result.ticks > 0:
@@ -81,6 +94,23 @@ def run(
         Console(stderr=True, highlight=False, soft_wrap=True).print(
             f"[red]run failed:[/red] {result.error}", markup=True)
         raise typer.Exit(EXIT_FAILED_RUN)
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """Turn SIGTERM into KeyboardInterrupt so the run records and closes its files."""
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt("terminated by SIGTERM")
+
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def analyse_run_folder(result: Any, figures: bool) -> list[str]:
@@ -167,6 +197,11 @@ def build_fmus(out: Optional[Path] = typer.Option(None, "--out", help="output fo
         raise _fail(UserError(str(error))) from None
     for path in paths:
         print(path)
+
+
+from cosim.worker_cli import register as _register_distributed  # noqa: E402
+
+_register_distributed(app)
 
 
 def normalize_realtime(argv: Sequence[str]) -> list[str]:

@@ -45,6 +45,7 @@ def base_manifest(scenario: Any, prepared: Any, hosted: dict[str, Any], transpor
         order: the master's step order.
     """
     host = socket.gethostname()
+    placement = dict(getattr(prepared, "placement", None) or {})  # component -> worker
     return {
         "name": scenario.name,
         "run_id": run_id,
@@ -57,7 +58,7 @@ def base_manifest(scenario: Any, prepared: Any, hosted: dict[str, Any], transpor
         "step_order": list(order),
         "periods_ticks": {n: int(c.period_ticks) for n, c in hosted.items()},
         "fmus": {plan.name: _fmu_entry(plan) for plan in prepared.fmus},
-        "hosts": {name: host for name in hosted},
+        "hosts": {name: placement.get(name, host) for name in hosted},
         "pids": {name: getattr(c, "pid", None) or os.getpid() for name, c in hosted.items()},
         "python": sys.version.split()[0],
         "platform": platform.platform(),

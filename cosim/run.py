@@ -14,8 +14,8 @@ from __future__ import annotations
 import contextlib
 import time
 import uuid
-from dataclasses import dataclass, field
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -287,7 +287,7 @@ def _failure_text(exc: BaseException) -> str:
     if isinstance(exc, UserError):
         return str(exc)
     if isinstance(exc, KeyboardInterrupt):
-        return "interrupted by the user (Ctrl-C)"
+        return f"interrupted: {exc}" if str(exc) else "interrupted by the user (Ctrl-C)"
     return f"internal error: {type(exc).__name__}: {exc}"
 
 

@@ -11,6 +11,7 @@ import pytest
 from cosim.cli import main, normalize_realtime
 from cosim.component import Component, Port
 from cosim.recorder import read_signals
+from test_fmu_component import lag_fmus  # noqa: F401  (session fixture)
 
 
 class Gain(Component):
@@ -160,3 +161,19 @@ def test_schema_is_json(capsys):
     assert main(["schema"]) == 0
     schema = json.loads(capsys.readouterr().out)
     assert "components" in schema["properties"] and "duration" in schema["properties"]
+
+
+def test_validate_foreign_fmu_name_map_and_parameter_range(tmp_path, lag_fmus, capsys):
+    from test_fmu_component import SCENARIO
+
+    path = tmp_path / "lag.yaml"
+    path.write_text(SCENARIO.format(fmu=lag_fmus[3]))
+    assert main(["validate", str(path)]) == 0
+    assert "step order: plant, ref, controller" in capsys.readouterr().out
+    assert main(["validate", str(path), "--set", "components.plant.parameters.gain=500"]) == 2
+    err = capsys.readouterr().err
+    assert "components.plant.parameters.gain" in err and "above its maximum 100" in err
+    path.write_text(SCENARIO.format(fmu=lag_fmus[3]).replace("y: y_out", "y: y_output"))
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "y_output" in err and "Traceback" not in err
