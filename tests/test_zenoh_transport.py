@@ -110,3 +110,20 @@ def test_master_killed_its_processes_exit_by_themselves(tmp_path):
     while run_processes(run_id) and time.monotonic() < end:
         time.sleep(0.05)
     assert run_processes(run_id) == []
+
+
+def test_spawn_early_then_wait_ready():
+    """Start-up in two steps, so the master can load FMUs while the processes start."""
+    run_id = f"t-spawn-{os.getpid()}"
+    hosted = ZenohComponents([launch("echo", "Echo")], run_id)
+    try:
+        hosted.spawn()
+        assert list(hosted.pids) == ["echo"]
+        with pytest.raises(RuntimeError, match="before the handshake"):
+            hosted.components
+        ready = hosted.wait_ready()
+        assert ready is hosted.components and hosted.wait_ready() is ready
+        assert ready["echo"].start(0.0, {"u": 2.5}) == {"y": 3.5}
+    finally:
+        hosted.close()
+    assert run_processes(run_id) == []

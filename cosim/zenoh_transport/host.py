@@ -29,7 +29,7 @@ from cosim.zenoh_transport.live import LivePublisher
 from cosim.zenoh_transport.processes import ChildProcess, reap
 from cosim.zenoh_transport.watchdog import Watchdog
 
-HELLO_RETRY_S = 0.05
+HELLO_RETRY_S = 0.02
 TERMINATE_GRACE_S = 2.0
 OPEN_ATTEMPTS = 5
 
@@ -89,7 +89,7 @@ class ZenohComponents:
         self.endpoint = endpoint
         self._connect = list(connect or [])
         self._startup_timeout_s = startup_timeout_s
-        self.components: dict[str, RemoteComponent] = {}
+        self._components: dict[str, RemoteComponent] | None = None
         self.session: Any = None
         self._children: dict[str, ChildProcess] = {}
         self._watchdog: Watchdog | None = None
@@ -99,17 +99,43 @@ class ZenohComponents:
 
     # ----------------------------------------------------------------- lifecycle
     def __enter__(self) -> "ZenohComponents":
+        """Open the session, spawn the processes and wait for every handshake."""
+        self.spawn()
+        self.wait_ready()
+        return self
+
+    def spawn(self) -> None:
+        """Open the session and start the processes without waiting for them, so
+        that the caller can do other start-up work (load FMUs) meanwhile; then call
+        `wait_ready` (or use the object as a context manager, which does both)."""
         try:
             self._open_session()
             for spec in self.specs:
                 self._children[spec.name] = self._spawn(spec)
-            self._handshake()
-            self._watchdog = Watchdog(self.session, self.run_id, self._children, self.deadline_s)
-            self._watchdog.start()
         except BaseException:
             self.close()
             raise
-        return self
+
+    def wait_ready(self) -> dict[str, "RemoteComponent"]:
+        """Wait for every component's handshake (once); return `components`."""
+        if self._components is None:
+            try:
+                self._components = self._handshake()
+                self._watchdog = Watchdog(self.session, self.run_id, self._children,
+                                          self.deadline_s)
+                self._watchdog.start()
+            except BaseException:
+                self.close()
+                raise
+        return self._components
+
+    @property
+    def components(self) -> dict[str, "RemoteComponent"]:
+        """The hosted components by name, in declaration order (after the handshake)."""
+        if self._components is None:
+            raise RuntimeError("ZenohComponents: components read before the handshake "
+                               "(use `with ZenohComponents(...)` or call wait_ready())")
+        return self._components
 
     def __exit__(self, *exc_info: object) -> None:
         self.close()
@@ -158,9 +184,10 @@ class ZenohComponents:
         self._live = LivePublisher(self.session, self.run_id)
 
     # ----------------------------------------------------------------- handshake
-    def _handshake(self) -> None:
+    def _handshake(self) -> dict[str, RemoteComponent]:
         """Send HELLO to every silent component until all have sent their ports."""
         pending = {spec.name: spec for spec in self.specs}
+        ready: dict[str, RemoteComponent] = {}
         channels = {name: (self.session.declare_publisher(config.request_key(self.run_id, name),
                                                           express=True),
                            self.session.declare_subscriber(config.reply_key(self.run_id, name)))
@@ -171,16 +198,17 @@ class ZenohComponents:
             for name in pending:
                 self._check_alive_at_start(name)
                 channels[name][0].put(hello)
-            self._collect_hellos(pending, channels, time.monotonic() + HELLO_RETRY_S)
+            self._collect_hellos(pending, channels, ready, time.monotonic() + HELLO_RETRY_S)
             if pending and time.monotonic() > end:
                 name = next(iter(pending))
                 raise ComponentFailure(name, None, 0.0, f"no handshake within "
                                        f"{self._startup_timeout_s:g} s after its process started")
         # declaration order, not the order the answers happened to arrive in
-        self.components = {spec.name: self.components[spec.name] for spec in self.specs}
+        return {spec.name: ready[spec.name] for spec in self.specs}
 
     def _collect_hellos(self, pending: dict[str, PythonComponentLaunch],
-                        channels: dict[str, tuple[Any, Any]], until: float) -> None:
+                        channels: dict[str, tuple[Any, Any]], ready: dict[str, RemoteComponent],
+                        until: float) -> None:
         """Take the handshake replies that arrive before `until`."""
         while pending and time.monotonic() < until:
             got = False
@@ -195,7 +223,7 @@ class ZenohComponents:
                     raise UserError(decode_json(data)["cause"])
                 if kind == Kind.PORTS:
                     document = decode_json(data)
-                    self.components[name] = RemoteComponent(
+                    ready[name] = RemoteComponent(
                         self, pending.pop(name), ports_from_json(document["inputs"]),
                         ports_from_json(document["outputs"]), int(document["pid"]),
                         channels[name])
