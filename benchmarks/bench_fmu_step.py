@@ -97,7 +97,7 @@ def physics_in_c(model: str, work: Path, steps: int = 20000) -> float:
                         *(str(p) for p in sorted(model_dir.glob("*.c"))), "-lm", "-o", str(exe)],
                        f"{model}: compiling the C timing loop")
     runs = [float(subprocess.run([str(exe), str(steps)], capture_output=True, text=True,
-                                 check=True).stdout) for _ in range(3)]
+                                 check=True).stdout) for _ in range(9)]
     return min(runs)
 
 
@@ -163,13 +163,14 @@ def compare(real: Path, null: Path, work: Path, steps: int, repeats: int) -> tup
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=2000, help="ticks per repeat")
-    parser.add_argument("--repeats", type=int, default=9, help="repeats (minimum is shown)")
+    parser.add_argument("--steps", type=int, default=500, help="ticks per timed block")
+    parser.add_argument("--repeats", type=int, default=30,
+                        help="blocks per FMU, alternating real/null (minimum is shown)")
     args = parser.parse_args()
     print(f"one {H * 1000:.0f} ms step through fmpy: set {len(INPUTS)} inputs + doStep + "
           f"get outputs; min of {args.repeats} x {args.steps} ticks")
-    print(f"{'FMU':24s} {'step us':>9s} {'null us':>9s} {'physics us':>11s} "
-          f"{'step/null':>10s} {'physics/overhead':>17s} {'C-loop us':>10s}")
+    print(f"{'FMU':22s} {'step us':>8s} {'null us':>8s} {'step-null':>10s} "
+          f"{'C-loop us':>10s} {'step/null':>10s} {'C-loop/null':>12s}")
     with tempfile.TemporaryDirectory(prefix="bench-fmu-") as tmp:
         work = Path(tmp)
         for model in fmu_build.MODELS:
@@ -179,10 +180,12 @@ def main() -> None:
                 null = build_null_twin(model, version, work)
                 t_real, t_null = compare(real, null, work, args.steps, args.repeats)
                 phys = t_real - t_null
-                print(f"{real.name:24s} {t_real:9.2f} {t_null:9.2f} {phys:11.2f} "
-                      f"{t_real / t_null:10.2f} {phys / t_null:17.2f} {c_loop:10.2f}")
-    print("physics us = step - null (same fmpy calls on a do-nothing twin with the same "
-          "variables);\nC-loop us = MODEL.do_step alone in a C loop (no fmpy, no runtime checks).")
+                print(f"{real.name:22s} {t_real:8.2f} {t_null:8.2f} {phys:10.2f} "
+                      f"{c_loop:10.2f} {t_real / t_null:10.2f} {c_loop / t_null:12.2f}")
+    print("null = same fmpy calls on a do-nothing twin FMU with the same variables (the "
+          "overhead);\nstep-null = physics seen through fmpy (noisy on a shared machine); "
+          "C-loop = MODEL.do_step\nalone in a C loop (the physics, no fmpy, no runtime checks); "
+          "C-loop/null = physics / overhead.")
 
 
 if __name__ == "__main__":
