@@ -132,3 +132,25 @@ def test_compare_figure_overlays_each_run_and_labels_are_unique(tmp_path):
     lines = _axes_by_title(fig)["lateral error at CG"].get_lines()
     assert [line.get_label() for line in lines] == ["run: yc", "other: yc"]
     np.testing.assert_array_equal(lines[1].get_ydata(), runs[1].signal("controller.yc"))
+
+
+def _cli():
+    import typer
+    from typer.testing import CliRunner
+
+    from cosim.cli_analysis import register
+
+    app = typer.Typer()
+    register(app)
+    return app, CliRunner()
+
+
+def test_cli_plot_and_its_error(tmp_path):
+    app, runner = _cli()
+    run = lane_change_run(tmp_path / "r")
+    result = runner.invoke(app, ["plot", str(run), "--layout", "track"])
+    assert result.exit_code == 0, result.output
+    assert (run / "figure_track.png").is_file() and "figure_track.png" in result.output
+    result = runner.invoke(app, ["plot", str(tmp_path / "missing")])
+    assert result.exit_code == 2 and "no such run folder" in result.output
+    assert "Traceback" not in result.output

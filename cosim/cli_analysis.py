@@ -1,0 +1,113 @@
+"""The analysis commands of `cosim`: plot, compare, sweep.
+
+`register(app)` adds them to the main typer app (cosim/cli.py):
+
+    cosim plot RUN_DIR [--layout track|manoeuvre]
+    cosim compare RUN_DIR RUN_DIR ... [--out DIR]
+    cosim sweep SCENARIO --vary PATH=LOW:HIGH ... --samples N [--seed S]
+                [--scheduler ADDRESS] [--out DIR] [--transport inproc|zenoh] [--method lhs|uniform]
+
+A user error (missing run folder, bad --vary, unreachable scheduler) prints
+one line on stderr and exits with status 2, without a traceback.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from cosim.errors import UserError
+
+EXIT_USER_ERROR = 2
+
+
+def _fail(error: UserError) -> typer.Exit:
+    Console(stderr=True, highlight=False, soft_wrap=True).print(
+        f"[red]error:[/red] {error}", markup=True)
+    return typer.Exit(EXIT_USER_ERROR)
+
+
+def plot(run_dir: Path = typer.Argument(..., help="run folder"),
+         layout: Optional[str] = typer.Option(None, "--layout",
+                                              help="track | manoeuvre (default: from the scenario)")
+         ) -> None:
+    """Redraw the paper-style figure of a run into its folder."""
+    from cosim.figures import draw_figures
+
+    try:
+        paths = draw_figures(run_dir, layout)
+    except UserError as exc:
+        raise _fail(exc) from None
+    for path in paths:
+        typer.echo(f"figure: {path}")
+
+
+def compare(run_dirs: list[Path] = typer.Argument(..., help="two or more run folders"),
+            out: Optional[Path] = typer.Option(None, "--out",
+                                               help="output folder (default: <first run's parent>/compare)"),
+            layout: Optional[str] = typer.Option(None, "--layout", help="track | manoeuvre")
+            ) -> None:
+    """Overlay several runs' figures and tabulate their metrics side by side."""
+    from cosim.compare import compare_runs
+
+    out_dir = out if out is not None else Path(run_dirs[0]).resolve().parent / "compare"
+    try:
+        paths = compare_runs(run_dirs, out_dir, layout)
+    except UserError as exc:
+        raise _fail(exc) from None
+    typer.echo(paths[2].read_text(), nl=False)
+    for path in paths:
+        typer.echo(f"wrote: {path}")
+
+
+def _print_summary(result) -> None:
+    from cosim.sweep import STATS
+
+    table = Table(title=f"sweep: {len(result.samples)} samples, {len(result.failures)} failed")
+    table.add_column("metric")
+    for stat in STATS:
+        table.add_column(stat, justify="right")
+    for name, stats in result.summary.items():
+        table.add_row(name, str(int(stats["n"])), *(f"{stats[k]:.4g}" for k in STATS[1:]))
+    console = Console()
+    console.print(table)
+    for failure in result.failures:
+        console.print(f"[yellow]failed:[/yellow] {failure.error}", markup=True, highlight=False)
+
+
+def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
+          vary: list[str] = typer.Option(..., "--vary", help="PATH=LOW:HIGH, repeatable"),
+          samples: int = typer.Option(..., "--samples", help="number of sampled runs"),
+          seed: int = typer.Option(0, "--seed", help="sampling seed"),
+          scheduler: Optional[str] = typer.Option(None, "--scheduler",
+                                                  help="Dask scheduler address (default: a local cluster)"),
+          out: Optional[Path] = typer.Option(None, "--out",
+                                             help="output folder (default: runs/sweep-<name>-s<seed>-n<samples>)"),
+          transport: str = typer.Option("inproc", "--transport", help="inproc | zenoh, for each run"),
+          method: str = typer.Option("lhs", "--method", help="lhs | uniform")) -> None:
+    """Monte-Carlo runs of a scenario on Dask; the distribution of every metric."""
+    from cosim.sweep import run_sweep
+
+    out_dir = out if out is not None else Path("runs") / f"sweep-{scenario.stem}-s{seed}-n{samples}"
+    try:
+        result = run_sweep(scenario, vary, samples, seed=seed, scheduler=scheduler,
+                           out_dir=out_dir, transport=transport, method=method)
+    except UserError as exc:
+        raise _fail(exc) from None
+    _print_summary(result)
+    typer.echo(f"results: {result.out_dir}")
+
+
+def register(app: typer.Typer) -> None:
+    """Add the plot, compare and sweep commands to the `cosim` app.
+
+    Args:
+        app: the main typer application.
+    """
+    app.command("plot")(plot)
+    app.command("compare")(compare)
+    app.command("sweep")(sweep)
