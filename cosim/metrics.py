@@ -169,8 +169,8 @@ def scenario_cones(run: RunData) -> np.ndarray | None:
     """
     for where in ("metrics.cones", "components.planner.parameters.cones"):
         cones = run.lookup(where)
-        if cones is None:
-            continue
+        if cones is None or (isinstance(cones, list) and not cones):
+            continue  # the scenario schema dumps "no cones" as []
         try:
             arr = np.asarray(cones, dtype=float)
         except (TypeError, ValueError):

@@ -166,6 +166,12 @@ def test_cone_hits_counts_each_cone_once(tmp_path):
     assert compute_metrics(planner_cones)["cone_hits"] == 4
 
 
+def test_empty_cone_list_means_no_cone_metric(tmp_path):
+    run = write_run(tmp_path / "r", T, {"vehicle.x": T, "vehicle.y": T, "vehicle.psi": T},
+                    {"metrics": {"skip_s": 0.0, "cones": []}})
+    assert "cone_hits" not in compute_metrics(run)
+
+
 def test_bad_cones_field_names_the_field(tmp_path):
     run = write_run(tmp_path / "r", T, {"vehicle.x": T}, {"metrics": {"cones": [[1, 2, 3]]}})
     with pytest.raises(AnalysisError, match=r"scenario\.metrics\.cones: expected a list"):
