@@ -42,12 +42,15 @@ def lag_fmus(tmp_path_factory) -> dict[int, Path]:
 
 
 class Steps(Component):
-    """u = 1 from t >= 0.25 on, 0 before (a test source)."""
+    """u = level from t >= 0.25 on, 0 before (a test source)."""
 
     outputs = (Port("u"),)
 
+    def __init__(self, level: float = 1.0):
+        self.level = level
+
     def step(self, t, inputs):
-        return {"u": 1.0 if t >= 0.25 else 0.0}
+        return {"u": self.level if t >= 0.25 else 0.0}
 
 
 class PController(Component):
@@ -187,3 +190,20 @@ def test_scenario_with_foreign_fmu_runs_through_the_master(tmp_path, lag_fmus, v
     assert manifest["fmus"]["plant"]["sha256"] == digest
     assert manifest["fmus"]["plant"]["parameters"] == {"tau": 0.2, "gain": 1.5}
     assert json.loads((tmp_path / "run" / "metrics.json").read_text()) == {"controller.steps": 51.0}
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_input_out_of_range_mid_run_names_tick_and_fmu_message(lag_fmus, version):
+    comps = {"lag": _lag(lag_fmus[version], 1),
+             "src": InprocComponent(PythonComponentLaunch("src", f"{__name__}:Steps",
+                                                          {"level": 2.0e6}, 1))}
+    master = Master(comps, [Edge("src", "u", "lag", "u")], tick=0.05, total_ticks=20)
+    with pytest.raises(ComponentFailure) as err:
+        master.run()
+    message = str(err.value)
+    # the source switches at tick 5; the lag receives the value at tick 6
+    assert message.startswith("component 'lag' failed at tick 6 (t=0.3 s): ")
+    assert "u_cmd = 2e+06 is outside its valid range" in message
+    assert master.ticks_done == 5
+    metrics, errors = master.stop_all()
+    assert errors == []
