@@ -18,6 +18,11 @@ Anti-windup: mu_hat is frozen for the next step when the steering command was
 limited (the law's assumption that mu B delta acts fully is then false), and
 below v_min. Low speed: below v_min the lateral law uses v_min in place of vx
 (it divides by vx); steering stays continuous and bounded.
+Measured caveat: with the faithful law the least-squares residual keeps z
+non-zero on a curve, so the adaptation law drifts even when mu_hat = mu (on
+R = 50 m at 10 m/s, mu = 1, mu_hat0 = 1: 0.49 after 10 s, then mu_min). With
+lateral_law "feedforward" z vanishes at equilibrium and the estimate moves to
+the true friction (0.4 -> 0.96 and 1.0 -> 0.60 for mu = 1.0 / 0.6 in 10 s).
 No trajectory yet (an all-zero window): steering held, torque 0, internals 0.
 V3 uses `mu_true`, a diagnostic parameter the control law never reads.
 """

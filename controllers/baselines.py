@@ -30,9 +30,8 @@ from controllers.control_common import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, Actu
                                         PlantMeasurement, SpeedPI, SteeringLimiter, StepClock,
                                         empty_window_outputs, outputs_to_floats, path_errors,
                                         read_inputs)
-from controllers.trajectory import TrajectoryWindow
 from controllers.vehicle_params import VehicleParams
-from controllers.window_projection import is_empty, point_at, project, wrap_angle
+from controllers.window_projection import PreparedWindow, is_empty, point_at, project, wrap_angle
 
 
 class _BaselineController(Component):
@@ -60,10 +59,11 @@ class _BaselineController(Component):
         plant, window = read_inputs(inputs, t)
         if is_empty(window):
             return empty_window_outputs(self.outputs, self.steering.last)
-        errors = path_errors(window, plant, self.ls)
+        prepared = PreparedWindow(window)
+        errors = path_errors(prepared, plant, self.ls)
         ex = plant.vx - errors.vx_ref
         torque = self.speed.torque(ex, errors.vx_ref_dot, dt)
-        delta = self.steering.apply(self.steer(plant, window), dt)
+        delta = self.steering.apply(self.steer(plant, prepared), dt)
         try:
             return outputs_to_floats({"delta": delta, "torque": torque, "yL": errors.y_l,
                                       "psiL": errors.psi_l, "yc": errors.y_c, "ex": ex,
@@ -71,7 +71,7 @@ class _BaselineController(Component):
         except ComponentError as error:
             raise ComponentError(f"at t = {t}: {error}") from None
 
-    def steer(self, plant: PlantMeasurement, window: TrajectoryWindow) -> float:
+    def steer(self, plant: PlantMeasurement, window: PreparedWindow) -> float:
         """Steering command before limits (subclasses)."""
         raise NotImplementedError
 
@@ -98,7 +98,7 @@ class PurePursuitController(_BaselineController):
             raise ComponentError(f"need ld_min > 0 and ld_gain >= 0, got {ld_min!r}, {ld_gain!r}")
         self.ld_min, self.ld_gain = float(ld_min), float(ld_gain)
 
-    def steer(self, plant: PlantMeasurement, window: TrajectoryWindow) -> float:
+    def steer(self, plant: PlantMeasurement, window: PreparedWindow) -> float:
         """Pure Pursuit steering angle from the rear axle towards the look-ahead point."""
         rear_x = plant.x - self.params.lr * math.cos(plant.psi)
         rear_y = plant.y - self.params.lr * math.sin(plant.psi)
@@ -132,7 +132,7 @@ class StanleyController(_BaselineController):
             raise ComponentError(f"need k_stanley > 0 and k_soft > 0, got {k_stanley!r}, {k_soft!r}")
         self.k_stanley, self.k_soft = float(k_stanley), float(k_soft)
 
-    def steer(self, plant: PlantMeasurement, window: TrajectoryWindow) -> float:
+    def steer(self, plant: PlantMeasurement, window: PreparedWindow) -> float:
         """Stanley steering angle from the front axle's heading and cross-track errors."""
         front = project(window, plant.x + self.params.lf * math.cos(plant.psi),
                         plant.y + self.params.lf * math.sin(plant.psi))

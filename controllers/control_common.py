@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 from cosim.component import ComponentError, Port, Value
 from controllers.trajectory import TrajectoryWindow, window_ports
-from controllers.window_projection import WindowError, is_empty, project, validate_window, wrap_angle
+from controllers.window_projection import (PreparedWindow, WindowError, is_empty, project,
+                                           validate_window, wrap_angle)
 
 PLANT_INPUTS: tuple[Port, ...] = (
     Port("x", unit="m", description="CG world x"),
@@ -92,14 +93,15 @@ def read_inputs(inputs: Mapping[str, Value], t: float) -> tuple[PlantMeasurement
     return PlantMeasurement(**values), window
 
 
-def path_errors(window: TrajectoryWindow, plant: PlantMeasurement, ls: float) -> PathErrors:
+def path_errors(window: TrajectoryWindow | PreparedWindow, plant: PlantMeasurement, ls: float) -> PathErrors:
     """Errors at the preview point and the reference speed at the CG's foot point.
 
     Args:
-        window: a valid, non-empty trajectory window.
+        window: a valid, non-empty trajectory window (or a PreparedWindow of it).
         plant: the measured state.
         ls: preview distance [m].
     """
+    window = window if isinstance(window, PreparedWindow) else PreparedWindow(window)
     cos_psi, sin_psi = math.cos(plant.psi), math.sin(plant.psi)
     preview = project(window, plant.x + ls * cos_psi, plant.y + ls * sin_psi)
     at_cg = project(window, plant.x, plant.y)

@@ -95,3 +95,19 @@ def test_world_frame_circle_faithful_vs_feedforward_cg():
     # the variant puts the CG on the path; the remainder is third order in ls rho
     assert abs(variant["yc"][-1]) < 2e-3
     assert np.all(np.abs(variant["yc"][-300:]) < 2e-3)
+
+
+def test_adaptation_drifts_at_the_faithful_equilibrium_but_not_the_feedforward_one():
+    # With mu_hat = mu exactly, the faithful law's steady state still has z^T q != 0 (the
+    # least-squares residual), so the paper's adaptation law moves mu_hat away from the truth;
+    # at the feedforward equilibrium z = 0 and the estimate stays put.
+    from controllers.backstepping_lateral import LateralMeasurement, lateral_law
+    for law, drifts in (("faithful", True), ("feedforward", False)):
+        gains = LateralGains(ke=(1.0, 1.0), kz=5.0, gz=1e5, ls=LS, law=law)
+        y_l, psi_l, vy, r = run_error_model(gains, VX, RHO, duration=20.0)["state"][-1]
+        meas = LateralMeasurement(y_l, psi_l, vy, r, vx=VX, vx_dot=0.0, rho=RHO, rho_dot=0.0)
+        mu_hat_dot = lateral_law(meas, 1.0, PARAMS, gains, g_mu=0.5).mu_hat_dot
+        if drifts:
+            assert mu_hat_dot < -1e-3        # measured -0.0038 /s; it grows as mu_hat leaves mu
+        else:
+            assert abs(mu_hat_dot) < 1e-8
