@@ -3,7 +3,7 @@
 Time is an integer tick k and t = t0 + k * tick (never accumulated). A
 component with a period of n ticks steps at k = n, 2n, ...; at k = 0 every
 component starts (initialization phase, same order). Between its steps a
-component's outputs are held (zero-order hold) in the flat signal buffer
+component's outputs are held (zero-order hold) in the signal store
 (`cosim.signals`). A component without direct feedthrough (an FMU) steps
 from t_{k-n} to t_k with its inputs as they stand at the start of tick k,
 i.e. the values of tick k-1 (for n = 1: the implicit one-tick delay of the
@@ -19,10 +19,10 @@ signal store (`values` list of scalars, `arrays` numpy buffer, indexed by
 from __future__ import annotations
 
 import math
-from math import isfinite as _isfinite
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from operator import itemgetter
 from dataclasses import dataclass
+from math import isfinite as _isfinite
+from operator import itemgetter
 from typing import Any, Protocol
 
 import numpy as np
@@ -64,7 +64,7 @@ class _Plan:
 
 
 class Master:
-    """Drives hosted components in lockstep over a flat signal buffer.
+    """Drives hosted components in lockstep over the signal store.
 
     Args:
         components: name -> HostedComponent, in declaration order.

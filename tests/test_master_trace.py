@@ -254,3 +254,40 @@ def test_wiring_size_mismatch_and_double_feed_are_refused():
     with pytest.raises(WiringError, match="input sum.a is fed twice"):
         Master(comps, [Edge("clock", "a", "sum", "a", 0), Edge("bad", "y", "sum", "a", 0)],
                tick=1.0, total_ticks=1)
+
+
+class Pair(Component):
+    """w = [t, -t] (an array output)."""
+
+    outputs = (Port("w", size=2),)
+
+    def step(self, t, inputs):
+        return {"w": np.array([t, -t])}
+
+
+class PairReader(Component):
+    """Reads the array w (default 7.0 before anything arrives); s = w[0]."""
+
+    inputs = (Port("w", size=2, default=7.0),)
+    outputs = (Port("s"),)
+
+    def step(self, t, inputs):
+        assert not inputs["w"].flags.writeable
+        return {"s": float(inputs["w"][0])}
+
+
+@pytest.mark.parametrize("delay", [0, 1])
+def test_array_edges_with_and_without_delay(delay):
+    comps = {"reader": inproc("reader", PairReader), "pair": inproc("pair", Pair)}
+    master = Master(comps, [Edge("pair", "w", "reader", "w", delay)], tick=0.5,
+                    total_ticks=3, trace=True)
+    master.run()
+    seen = [(k, i["w"].tolist()) for k, n, i in master.trace if n == "reader"]
+    if delay:
+        # delay edges do not order: declaration order, the reader sees the previous tick
+        assert master.order == ["reader", "pair"]
+        assert seen == [(0, [7.0, 7.0]), (1, [0.0, -0.0]), (2, [0.5, -0.5]), (3, [1.0, -1.0])]
+    else:
+        assert master.order == ["pair", "reader"]
+        assert seen == [(0, [0.0, -0.0]), (1, [0.5, -0.5]), (2, [1.0, -1.0]), (3, [1.5, -1.5])]
+    assert master.value("pair", "w").tolist() == [1.5, -1.5]
