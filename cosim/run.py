@@ -223,8 +223,9 @@ class _LivePublisher:
         self.index = [i for _, i in columns]
 
     def after_tick(self, tick: int, t: float, values: list[float], arrays: Any) -> None:
-        self.transport.publish(tick, t, self.names,
-                               np.array([values[i] for i in self.index], dtype=np.float64))
+        if getattr(self.transport, "live_matching", True):  # nobody listening: no cost
+            self.transport.publish(tick, t, self.names,
+                                   np.array([values[i] for i in self.index], dtype=np.float64))
 
 
 def _execute(prepared: PreparedRun, hosted: dict[str, Any], publisher: Any, out: Path,
@@ -234,6 +235,8 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], publisher: Any, out:
     master, recorder, pacer, bar = _build_master(scenario, hosted, publisher, out,
                                                  realtime, progress)
     manifest = base_manifest(scenario, prepared, hosted, transport, run_id, master.order)
+    if publisher is not None:  # where a watcher connects to see the run live
+        manifest["live"] = {"run_id": run_id, "endpoint": getattr(publisher, "endpoint", None)}
     manifest["hosts"].update(getattr(publisher, "hosts", {}))
     write_json(out / "manifest.json", manifest)
     failure: BaseException | None = None

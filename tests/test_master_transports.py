@@ -47,7 +47,8 @@ def child_can_import_test_components(monkeypatch):
 
 
 def _run(scenario: Path, out: Path, transport: str, *extra: str) -> int:
-    return main(["run", str(scenario), "--out", str(out), "--transport", transport, *extra])
+    return main(["run", str(scenario), "--out", str(out), "--transport", transport,
+                 "--no-figures", *extra])
 
 
 def test_inproc_and_zenoh_give_identical_files(tmp_path, lag_fmus):
@@ -59,9 +60,11 @@ def test_inproc_and_zenoh_give_identical_files(tmp_path, lag_fmus):
     assert inproc.read_bytes() == zenoh.read_bytes()
     assert len(read_signals(zenoh)[1]) == 101
     metrics = [json.loads((tmp_path / t / "metrics.json").read_text()) for t in ("inproc", "zenoh")]
-    assert metrics[0] == metrics[1] and metrics[0] == {"controller.steps": 51.0}
+    assert metrics[0] == metrics[1] and metrics[0]["controller.steps"] == 51.0
     manifest = json.loads((tmp_path / "zenoh" / "manifest.json").read_text())
     assert manifest["transport"] == "zenoh" and manifest["status"] == "ok"
+    assert manifest["live"]["run_id"] == manifest["run_id"]
+    assert manifest["live"]["endpoint"].startswith("tcp/")
 
 
 def test_nan_over_zenoh_fails_the_run_with_a_readable_partial_file(tmp_path, capsys):
