@@ -12,7 +12,8 @@ from __future__ import annotations
 import json
 import math
 import struct
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from operator import itemgetter
 from typing import Any
 
 import numpy as np
@@ -59,6 +60,7 @@ class Layout:
         self.size = sum(p.size for p in self.ports)
         self.scalar_only = all(p.size == 1 for p in self.ports)
         self._struct = struct.Struct(f"<qqqd{self.size}d")
+        self._pick = _picker(self.names)
         self._slices: list[tuple[str, int, int]] = []
         offset = 0
         for port in self.ports:
@@ -76,7 +78,7 @@ class Layout:
         """
         if self.scalar_only:
             try:
-                floats = [values[n] for n in self.names]
+                floats = self._pick(values)
                 message = self._struct.pack(kind, seq, tick, t, *floats)
             except (KeyError, TypeError, struct.error):
                 raise CodecError(self.problem(values) or "not packable") from None
@@ -129,6 +131,16 @@ class Layout:
             if problem:
                 return f"{role} {name!r} {problem}"
         return ""
+
+
+def _picker(names: tuple[str, ...]) -> Callable[[Mapping[str, Value]], tuple]:
+    """A C-level getter of the values of `names`, always returning a tuple."""
+    if len(names) >= 2:
+        return itemgetter(*names)
+    if len(names) == 1:
+        only = names[0]
+        return lambda values: (values[only],)
+    return lambda values: ()
 
 
 def value_problem(value: Any, size: int) -> str:

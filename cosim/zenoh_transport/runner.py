@@ -33,6 +33,7 @@ from cosim.zenoh_transport.codec import (CodecError, Kind, Layout, HEADER,
                                          encode_json, ports_to_json)
 
 MASTER_POLL_S = 0.1
+_STEP, _OUTPUTS = Kind.STEP, Kind.OUTPUTS
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -70,12 +71,23 @@ class _Server:
         if self.component is not None:
             self.in_layout = Layout(self.component.inputs, "input")
             self.out_layout = Layout(self.component.outputs)
+            # bound once: the step path below is the per-tick hot path
+            self._decode = self.in_layout.decode
+            self._encode = self.out_layout.encode
+            self._step_component = self.component.step
 
     def handle(self, data: bytes) -> tuple[bytes | None, bool]:
         """The reply to one request, and whether the process should end after it."""
         kind, seq, tick, t = HEADER.unpack_from(data)
-        if kind == Kind.STEP and self.component is not None:  # the hot path first
-            return self._step(kind, seq, tick, t, data), False
+        if kind == _STEP and self.component is not None:
+            try:
+                outputs = self._step_component(t, self._decode(data))
+            except Exception as exc:  # user code: the master reports it with tick and time
+                return encode_json(Kind.ERROR, seq, tick, t, {"cause": _describe(exc)}), False
+            try:
+                return self._encode(_OUTPUTS, seq, tick, t, outputs, True), False
+            except CodecError as exc:
+                return encode_json(Kind.ERROR, seq, tick, t, {"cause": str(exc)}), False
         if kind == Kind.HELLO:
             return self._hello(seq), False
         if self.component is None:
