@@ -127,3 +127,13 @@ def test_spawn_early_then_wait_ready():
     finally:
         hosted.close()
     assert run_processes(run_id) == []
+
+
+def test_slow_constructor_then_normal_exchanges():
+    """A component that takes longer to build than many handshake retries."""
+    with ZenohComponents([launch("slow", "SlowStart", seconds=1.5)], f"t-slow-{os.getpid()}",
+                         deadline_s=2.0) as hosted:
+        slow = hosted.components["slow"]
+        assert slow.start(0.0, {"u": 1.0}) == {"y": 2.0}
+        assert [slow.step(k, k * TICK, {"u": float(k)})["y"] for k in range(1, 6)] \
+            == [2.0, 4.0, 6.0, 8.0, 10.0]

@@ -131,3 +131,16 @@ def run_processes(run_id: str) -> list[int]:
         if run_id.encode() in argv and state != "Z":
             found.append(int(entry))
     return found
+
+
+class SlowStart(Component):
+    """Takes `seconds` to construct (many handshake retries meanwhile)."""
+
+    inputs = (Port("u"),)
+    outputs = (Port("y"),)
+
+    def __init__(self, seconds: float = 1.0) -> None:
+        time.sleep(seconds)
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        return {"y": 2.0 * inputs["u"]}

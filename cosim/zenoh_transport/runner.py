@@ -157,9 +157,11 @@ def serve(args: argparse.Namespace) -> int:
     with zenoh.open(conf) as session:
         _exit_when_master_gone(session, args.run_id)
         token = session.liveliness().declare_token(config.alive_key(args.run_id, args.name))
+        # Build first, then subscribe: the master's HELLO retries sent while a slow
+        # constructor runs are not delivered, so they cannot fill the request queue.
+        server = _Server(launch)
         requests = session.declare_subscriber(config.request_key(args.run_id, args.name))
         publisher = session.declare_publisher(config.reply_key(args.run_id, args.name), express=True)
-        server = _Server(launch)
         done = False
         while not done:
             data = requests.recv().payload.to_bytes()
