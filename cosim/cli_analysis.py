@@ -4,7 +4,7 @@
 
     cosim plot RUN_DIR [--layout track|manoeuvre]
     cosim compare RUN_DIR RUN_DIR ... [--out DIR]
-    cosim sweep SCENARIO --vary PATH=LOW:HIGH ... --samples N [--seed S]
+    cosim sweep SCENARIO --vary PATH=LOW:HIGH ... --samples N [--seed S] [--set PATH=VALUE ...]
                 [--scheduler ADDRESS] [--out DIR] [--transport inproc|zenoh] [--method lhs|uniform]
 
 A user error (missing run folder, bad --vary, unreachable scheduler) prints
@@ -68,12 +68,14 @@ def _print_summary(result) -> None:
     from cosim.sweep import STATS
 
     table = Table(title=f"sweep: {len(result.samples)} samples, {len(result.failures)} failed")
-    table.add_column("metric")
+    table.add_column("metric", no_wrap=True)
     for stat in STATS:
         table.add_column(stat, justify="right")
     for name, stats in result.summary.items():
         table.add_row(name, str(int(stats["n"])), *(f"{stats[k]:.4g}" for k in STATS[1:]))
     console = Console()
+    if not console.is_terminal:
+        console = Console(width=160)  # a pipe or a file: do not squeeze the table to 80 columns
     console.print(table)
     for failure in result.failures:
         console.print(f"[yellow]failed:[/yellow] {failure.error}", markup=True, highlight=False)
@@ -81,6 +83,8 @@ def _print_summary(result) -> None:
 
 def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
           vary: list[str] = typer.Option(..., "--vary", help="PATH=LOW:HIGH, repeatable"),
+          sets: Optional[list[str]] = typer.Option(None, "--set",
+                                                   help="PATH=VALUE fixed for every sample, repeatable"),
           samples: int = typer.Option(..., "--samples", help="number of sampled runs"),
           seed: int = typer.Option(0, "--seed", help="sampling seed"),
           scheduler: Optional[str] = typer.Option(None, "--scheduler",
@@ -95,7 +99,8 @@ def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
     out_dir = out if out is not None else Path("runs") / f"sweep-{scenario.stem}-s{seed}-n{samples}"
     try:
         result = run_sweep(scenario, vary, samples, seed=seed, scheduler=scheduler,
-                           out_dir=out_dir, transport=transport, method=method)
+                           out_dir=out_dir, transport=transport, method=method,
+                           sets=sets or ())
     except UserError as exc:
         raise _fail(exc) from None
     _print_summary(result)

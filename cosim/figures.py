@@ -10,8 +10,11 @@ Two layouts, after the paper:
 
 The layout comes from the scenario's `metrics.figures` ("track" or
 "manoeuvre") when given; else a scenario name with "lane", "obstacle",
-"iso3888" or "manoeuvre" in it means manoeuvre; else recorded alternative
-windows that differ from the recommended ones mean manoeuvre; else track.
+"iso3888" or "manoeuvre" in it means manoeuvre, one with "satory", "track"
+or "friction" means track; else a planner that moved off its lane
+(`planner.lateral_offset` not always 0) means manoeuvre; else track. (The
+planner always offers an alternative lane, so alternative windows alone say
+nothing.)
 Figures are built on matplotlib's Agg backend without pyplot, so drawing
 touches no global state.
 """
@@ -31,6 +34,7 @@ from cosim.metrics_rundata import AnalysisError, RunData, load_run
 
 LAYOUTS = ("track", "manoeuvre")
 MANOEUVRE_WORDS = ("lane", "obstacle", "iso3888", "manoeuvre", "maneuver")
+TRACK_WORDS = ("satory", "track", "friction")
 DPI = 110
 
 
@@ -49,10 +53,11 @@ def choose_layout(run: RunData) -> str:
     name = str(run.lookup("name", "")).lower()
     if any(word in name for word in MANOEUVRE_WORDS):
         return "manoeuvre"
-    ref, alt = sig.window(run, "ref"), sig.window(run, "alt")
-    if ref is not None and alt is not None and ref[1].values.shape == alt[1].values.shape:
-        if not np.array_equal(ref[1].values, alt[1].values):
-            return "manoeuvre"
+    if any(word in name for word in TRACK_WORDS):
+        return "track"
+    offset = run.signal("planner.lateral_offset")
+    if offset is not None and np.any(offset != 0):
+        return "manoeuvre"
     return "track"
 
 

@@ -131,7 +131,7 @@ def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False
     _finish(ax, title, "x (m)", "y (m)")
 
 
-def zoom_map(ax: Axes, runs: Sequence[RunData], half_width: float = 15.0) -> None:
+def zoom_map(ax: Axes, runs: Sequence[RunData], half_width: float = 5.0) -> None:
     """The map zoomed on the place of the first run's largest |yc|."""
     trajectory_map(ax, runs, title="zoom on tracking (largest |yc|)")
     first = runs[0]

@@ -87,14 +87,13 @@ def speed_error(run: RunData) -> np.ndarray | None:
 def true_mu(run: RunData) -> tuple[np.ndarray, str]:
     """The friction fed to the vehicle at each tick, and where it came from.
 
-    Follows the manifest's connection into `vehicle.mu` to its source column;
+    Follows the connection into `vehicle.mu` (explicit, or the short form
+    "a -> vehicle" feeding it from a.mu) to its source column;
     when unconnected, the scenario's `components.vehicle.parameters.mu`, else 1.0.
     """
-    for src, dst in run.connections():
-        if dst == "vehicle.mu":
-            column = run.signal(src)
-            if column is not None:
-                return column, src
+    src = run.source_of("vehicle.mu")
+    if src is not None:
+        return run.columns[src], src
     mu = run.number("components.vehicle.parameters.mu", 1.0)
     source = "components.vehicle.parameters.mu" if run.lookup(
         "components.vehicle.parameters.mu") is not None else "default 1.0"

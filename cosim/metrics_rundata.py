@@ -156,15 +156,40 @@ class RunData:
         return float(value)
 
     def connections(self) -> list[tuple[str, str]]:
-        """The manifest's connections as (source, destination) pairs ([] when absent)."""
+        """Connections as (source, destination) pairs, as written ([] when none known).
+
+        From the manifest's "connections" ("a.x -> b.y" strings) when present,
+        else from the scenario's connections ({"from", "to"} mappings or
+        strings). Short forms ("a -> b": every output of a feeds b's input of
+        the same name) are returned as written; see `source_of`.
+        """
+        items = self.manifest.get("connections") or self.scenario.get("connections") or []
         pairs = []
-        for item in self.manifest.get("connections") or []:
+        for item in items:
             if isinstance(item, str) and "->" in item:
                 src, dst = item.split("->", 1)
                 pairs.append((src.strip(), dst.strip()))
             elif isinstance(item, dict) and "from" in item and "to" in item:
                 pairs.append((str(item["from"]), str(item["to"])))
         return pairs
+
+    def source_of(self, destination: str) -> str | None:
+        """The recorded column feeding input `destination` ("vehicle.mu"), or None.
+
+        An explicit "a.x -> vehicle.mu" wins over a short form "a -> vehicle"
+        (which feeds vehicle.mu from a.mu), as in the platform's wiring rules.
+        """
+        component, _, port = destination.partition(".")
+        short = None
+        for src, dst in self.connections():
+            if dst == destination and "." in src:
+                return src if src in self.columns else None
+            if dst == destination and "." not in src:
+                outputs = [c for c in self.columns if c.startswith(src + ".")]
+                short = outputs[0] if len(outputs) == 1 else short
+            if dst == component and "." not in src and f"{src}.{port}" in self.columns:
+                short = f"{src}.{port}"
+        return short
 
 
 def _read_manifest(run_dir: Path) -> dict[str, Any]:

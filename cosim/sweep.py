@@ -284,7 +284,8 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
               seed: int = 0, scheduler: str | None = None, out_dir: str | Path = "sweep",
               transport: str = "inproc", method: str = "lhs",
               run_fn: RunFunction | None = None,
-              cluster_options: dict[str, Any] | None = None) -> SweepResult:
+              cluster_options: dict[str, Any] | None = None,
+              sets: Sequence[str] = ()) -> SweepResult:
     """Run a Monte-Carlo sweep of a scenario on Dask (see the module docstring).
 
     Args:
@@ -299,6 +300,7 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
         run_fn: (scenario_path, overrides, run_dir, transport) -> metrics; default
             `run_scenario_sample`. Must be picklable for process workers.
         cluster_options: extra LocalCluster keyword arguments (e.g. processes=False).
+        sets: fixed "PATH=VALUE" overrides applied to every sample before the varied ones.
     """
     parsed = [v if isinstance(v, Vary) else parse_vary(v) for v in varies]
     if not parsed:
@@ -312,7 +314,7 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
     points = sample_points(parsed, samples, seed, method)
     out = Path(out_dir)
     (out / "samples").mkdir(parents=True, exist_ok=True)
-    jobs = [(i, [format_override(v.path, x) for v, x in zip(parsed, row)],
+    jobs = [(i, list(sets) + [format_override(v.path, x) for v, x in zip(parsed, row)],
              (out / "samples" / f"sample_{i:04d}").resolve()) for i, row in enumerate(points)]
     task = partial(_run_task, run_fn or run_scenario_sample, scenario_path, transport)
     outcomes = execute_samples(task, jobs, scheduler, cluster_options)
@@ -320,7 +322,7 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
                for (i, row), (status, metrics, error) in zip(enumerate(points), outcomes)]
     result = SweepResult(parsed, results, summarize_samples(results), out, [])
     settings = {"scenario": str(scenario_path), "varies": [v.__dict__ for v in parsed],
-                "samples": samples, "seed": seed, "method": method, "transport": transport,
+                "sets": list(sets), "samples": samples, "seed": seed, "method": method, "transport": transport,
                 "scheduler": scheduler, "failed": len(result.failures)}
     result.files = write_sweep_files(result, settings)
     return result

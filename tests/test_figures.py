@@ -79,10 +79,14 @@ def test_layout_choice_rules(tmp_path):
     with pytest.raises(AnalysisError, match=r"scenario\.metrics\.figures: .* found 'fig4'"):
         choose_layout(load_run(bad))
     px = np.ones((3, 4))
-    differ = write_run(tmp_path / "e", t, {"vehicle.x": t}, {"name": "drive"}, arrays={
-        "planner.ref_x": (t, px), "planner.ref_y": (t, 0 * px),
-        "planner.alt_x": (t, px), "planner.alt_y": (t, 0 * px + 3.5)})
-    assert choose_layout(load_run(differ)) == "manoeuvre"
+    alt_differs = {"planner.ref_x": (t, px), "planner.ref_y": (t, 0 * px),
+                   "planner.alt_x": (t, px), "planner.alt_y": (t, 0 * px + 3.5)}
+    keeping = write_run(tmp_path / "e", t, {"planner.lateral_offset": 0 * t}, {"name": "drive"},
+                        arrays=alt_differs)
+    assert choose_layout(load_run(keeping)) == "track"
+    moved = write_run(tmp_path / "f", t, {"planner.lateral_offset": np.array([0, 1.0, 3.5])},
+                      {"name": "drive"})
+    assert choose_layout(load_run(moved)) == "manoeuvre"
 
 
 def test_missing_signals_give_notes_not_errors(tmp_path):

@@ -84,6 +84,20 @@ def test_true_mu_follows_the_connection_to_its_source_column(tmp_path):
     assert m["mu_hat_final"] == pytest.approx(0.7)
 
 
+def test_true_mu_follows_scenario_connections_and_short_forms(tmp_path):
+    cols = {"friction.value": np.full_like(T, 0.4), "wet.mu": np.full_like(T, 0.6),
+            "other.mu": np.full_like(T, 0.2)}
+    explicit = [{"from": "wet", "to": "vehicle", "delay": 0},
+                {"from": "friction.value", "to": "vehicle.mu", "delay": 0}]
+    run = write_run(tmp_path / "a", T, cols, {"connections": explicit})
+    assert compute_metrics(run)["mu_true_final"] == 0.4  # explicit beats the short form
+    short = write_run(tmp_path / "b", T, cols, {"connections": ["wet -> vehicle"]})
+    assert compute_metrics(short)["mu_true_final"] == 0.6
+    single_output = write_run(tmp_path / "c", T, cols,
+                              {"connections": [{"from": "friction", "to": "vehicle.mu"}]})
+    assert compute_metrics(single_output)["mu_true_final"] == 0.4
+
+
 def test_true_mu_unconnected_uses_vehicle_parameter_then_one(tmp_path):
     cols = {"vehicle.x": T}
     with_param = write_run(tmp_path / "a", T, cols,

@@ -74,7 +74,8 @@ def test_summary_statistics_exact():
 
 def fake_run(scenario_path: Path, overrides, run_dir: Path, transport: str) -> dict[str, float]:
     """A cheap stand-in for a run: metrics are analytic functions of the overrides."""
-    values = {k: yaml.safe_load(v) for k, v in (o.split("=", 1) for o in overrides)}
+    assert overrides[0] == "duration=1"
+    values = {k: yaml.safe_load(v) for k, v in (o.split("=", 1) for o in overrides[1:])}
     scale = values["components.vehicle.uncertainty.m.scale"]
     if scale > 1.25:
         raise RuntimeError(f"diverged at scale {scale}")
@@ -96,7 +97,7 @@ def test_sweep_on_a_local_dask_cluster_aggregates_exactly(tmp_path):
               "components.vehicle.parameters.mu=0.3:1.0"]
     options = {"processes": False, "n_workers": 1, "threads_per_worker": 1}
     result = run_sweep(scenario, varies, samples=12, seed=5, out_dir=tmp_path / "out",
-                       run_fn=fake_run, cluster_options=options)
+                       run_fn=fake_run, cluster_options=options, sets=["duration=1"])
     points = sample_points([parse_vary(v) for v in varies], 12, 5)
     failed = points[:, 0] > 1.25
     assert failed.any() and not failed.all()
@@ -115,9 +116,10 @@ def test_sweep_on_a_local_dask_cluster_aggregates_exactly(tmp_path):
     assert (tmp_path / "out" / "samples" / "sample_0000" / "marker.txt").read_text() == "inproc"
     settings = json.loads((tmp_path / "out" / "sweep.json").read_text())
     assert settings["failed"] == int(failed.sum()) and settings["seed"] == 5
+    assert settings["sets"] == ["duration=1"]
 
     again = run_sweep(scenario, varies, samples=12, seed=5, out_dir=tmp_path / "again",
-                      run_fn=fake_run, cluster_options=options)
+                      run_fn=fake_run, cluster_options=options, sets=["duration=1"])
     for name in ("samples.csv", "summary.csv", "summary.md"):
         assert (tmp_path / "again" / name).read_bytes() == (tmp_path / "out" / name).read_bytes()
     assert again.summary == result.summary
@@ -148,3 +150,25 @@ def test_cli_sweep_reports_bad_vary_without_traceback(tmp_path):
                                       "--out", str(tmp_path / "o")])
     assert result.exit_code == 2
     assert "--vary 'a=3:1': LOW 3 is above HIGH 1" in result.output
+
+
+SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "satory_nominal.yaml"
+
+
+@pytest.mark.integration
+@pytest.mark.skipif(not SCENARIO.is_file(), reason="scenarios/satory_nominal.yaml not present")
+def test_real_runs_through_the_default_run_function(tmp_path):
+    from cosim.metrics import compute_metrics
+
+    result = run_sweep(SCENARIO, ["components.vehicle.uncertainty.Iz.scale=0.9:1.1"], samples=2,
+                       seed=2, out_dir=tmp_path / "out", sets=["duration=2"],
+                       cluster_options={"processes": False, "n_workers": 1})
+    assert [s.status for s in result.samples] == ["ok", "ok"], result.failures
+    for sample in result.samples:
+        run_dir = tmp_path / "out" / "samples" / f"sample_{sample.index:04d}"
+        manifest = json.loads((run_dir / "manifest.json").read_text())
+        assert manifest["scenario"]["duration"] == 2.0
+        iz = manifest["scenario"]["components"]["vehicle"]["uncertainty"]["Iz"]["scale"]
+        assert iz == sample.values[0]
+        for name, value in compute_metrics(run_dir).items():
+            assert sample.metrics[name] == value
