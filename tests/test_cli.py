@@ -105,12 +105,15 @@ def test_run_with_set_override_writes_the_run_folder(good, tmp_path, capsys):
     assert manifest["status"] == "ok" and manifest["ticks"] == 10
     assert manifest["sim_time_s"] == 0.1 and manifest["transport"] == "inproc"
     assert manifest["wall_time_s"] > 0 and manifest["real_time_factor"] > 0
-    assert "real-time factor" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "real-time factor" in printed
+    # the run is analysed afterwards: a figure, or a note saying why not
+    assert "figure: " in printed or "figures not drawn: " in printed
 
 
 def test_failed_run_exits_1_and_keeps_what_it_has(good, tmp_path, capsys):
     out = tmp_path / "run2"
-    code = main(["run", str(good), "--out", str(out), "--transport", "inproc",
+    code = main(["run", str(good), "--out", str(out), "--transport", "inproc", "--no-figures",
                  "--set", "components.gain.parameters.fail_at=0.3"])
     assert code == 1
     err = capsys.readouterr().err
@@ -130,7 +133,8 @@ def test_bad_set_override_exit_2(good, capsys):
 
 def test_default_run_folder_under_runs(good, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    assert main(["run", str(good), "--transport", "inproc", "--set", "duration=0.02"]) == 0
+    assert main(["run", str(good), "--transport", "inproc", "--no-figures",
+                 "--set", "duration=0.02"]) == 0
     folders = list((tmp_path / "runs").iterdir())
     assert len(folders) == 1 and folders[0].name.startswith("gain_demo-")
     assert f"run folder: runs/{folders[0].name}" in capsys.readouterr().out
@@ -138,7 +142,7 @@ def test_default_run_folder_under_runs(good, tmp_path, monkeypatch, capsys):
 
 def test_realtime_pacing_reports_stats(good, tmp_path):
     out = tmp_path / "rt"
-    assert main(["run", str(good), "--out", str(out), "--transport", "inproc",
+    assert main(["run", str(good), "--out", str(out), "--transport", "inproc", "--no-figures",
                  "--set", "duration=0.05", "--realtime", "10"]) == 0
     realtime = json.loads((out / "manifest.json").read_text())["realtime"]
     assert realtime["factor"] == 10.0 and realtime["ticks"] == 5

@@ -36,9 +36,14 @@ def build_lag(out_dir: Path) -> dict[int, Path]:
     return {v: fmu_build.build_fmu_from(TEST_FMUS / "Lag", v, out_dir) for v in (2, 3)}
 
 
+_BUILT: dict[str, dict[int, Path]] = {}  # one build per session, shared by the modules importing the fixture
+
+
 @pytest.fixture(scope="session")
 def lag_fmus(tmp_path_factory) -> dict[int, Path]:
-    return build_lag(tmp_path_factory.mktemp("lag"))
+    if "lag" not in _BUILT:
+        _BUILT["lag"] = build_lag(tmp_path_factory.mktemp("lag"))
+    return _BUILT["lag"]
 
 
 class Steps(Component):
