@@ -167,6 +167,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
     """
     if transport not in TRANSPORTS:
         raise UserError(f"unknown transport {transport!r} (choose from {', '.join(TRANSPORTS)})")
+    if realtime is not None and not realtime > 0:
+        raise UserError(f"--realtime factor must be > 0, got {realtime!r}")
     prepared = prepare_run(scenario)
     from cosim.placement import resolve_placement
 
@@ -276,7 +278,7 @@ def _build_master(scenario: Any, hosted: dict[str, Any], publisher: Any, out: Pa
     edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()},
                            unsupported)
     recorder = Recorder(out, scenario.record.include, scenario.record.exclude)
-    pacer = RealtimePacer(realtime, scenario.tick) if realtime else None
+    pacer = RealtimePacer(realtime, scenario.tick) if realtime is not None else None
     bar = ProgressBar(scenario.total_ticks, scenario.tick) if progress else None
     observers: list[Any] = [o for o in (recorder, pacer, bar) if o is not None]
     if publisher is not None:

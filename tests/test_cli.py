@@ -181,3 +181,8 @@ def test_validate_foreign_fmu_name_map_and_parameter_range(tmp_path, lag_fmus, c
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
     assert "y_output" in err and "Traceback" not in err
+
+
+def test_non_positive_realtime_factor_exit_2(good, capsys):
+    assert main(["run", str(good), "--transport", "inproc", "--realtime", "0"]) == 2
+    assert "--realtime factor must be > 0, got 0.0" in capsys.readouterr().err
