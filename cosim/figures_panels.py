@@ -14,6 +14,7 @@ import numpy as np
 from matplotlib.axes import Axes
 
 from cosim import figures_signals as sig
+from cosim.metrics import run_cone_hits
 from cosim.metrics_rundata import RunData
 
 COLORS = ("tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange", "tab:brown",
@@ -100,6 +101,18 @@ def _windows(ax: Axes, run: RunData, prefix: str, style: dict, label: str, count
                 label=label if k == 0 else None, **style)
 
 
+def _cones(ax: Axes, run: RunData) -> None:
+    """The scenario's cones: hit ones as red crosses, the others as orange triangles."""
+    found = run_cone_hits(run)
+    if found is None:
+        return
+    cones, hit = found
+    ax.plot(cones[~hit, 0], cones[~hit, 1], "^", color="tab:orange", ms=5, ls="none", label="cone")
+    if hit.any():
+        ax.plot(cones[hit, 0], cones[hit, 1], "x", color="red", ms=7, mew=2, ls="none",
+                label=f"cone hit ({int(hit.sum())})")
+
+
 def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False,
                    title: str = "trajectory (x-y map)", equal: bool = True) -> None:
     """Vehicle CG path and planned path; with `both_windows`, planner windows too.
@@ -124,6 +137,7 @@ def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False
         if xy is not None:
             ax.plot(xy[0], xy[1], color=color(i), lw=1.2, label=_label(runs, i, "vehicle"))
             drawn = True
+    _cones(ax, runs[0])
     if not drawn:
         _missing(ax, "vehicle.x, vehicle.y")
     if equal:

@@ -181,20 +181,32 @@ def scenario_cones(run: RunData) -> np.ndarray | None:
     return None
 
 
-def _cone_metric(run: RunData, report: MetricsReport) -> None:
+def run_cone_hits(run: RunData) -> tuple[np.ndarray, np.ndarray] | None:
+    """The scenario's cones (n, 2) and, per cone, whether the body touched it.
+
+    The body is `metrics.vehicle_length` x `metrics.vehicle_width` (defaults
+    4.5 m x 1.8 m), its front `metrics.vehicle_front` ahead of the CG (default:
+    half the length). None when the scenario lists no cones or the run did not
+    record vehicle.x, vehicle.y and vehicle.psi.
+    """
     cones = scenario_cones(run)
-    if cones is None:
-        return
     pose = [run.signal(f"vehicle.{s}") for s in ("x", "y", "psi")]
-    if any(p is None for p in pose):
-        report.notes.append("cone_hits: vehicle.x, vehicle.y or vehicle.psi not recorded")
-        return
+    if cones is None or any(p is None for p in pose):
+        return None
     front = run.lookup("metrics.vehicle_front")
     hits = cone_hits(*pose, cones,
                      length=run.number("metrics.vehicle_length", 4.5),
                      width=run.number("metrics.vehicle_width", 1.8),
                      front=None if front is None else run.number("metrics.vehicle_front", 0.0))
-    report.values["cone_hits"] = int(np.count_nonzero(hits))
+    return cones, hits
+
+
+def _cone_metric(run: RunData, report: MetricsReport) -> None:
+    found = run_cone_hits(run)
+    if found is not None:
+        report.values["cone_hits"] = int(np.count_nonzero(found[1]))
+    elif scenario_cones(run) is not None:
+        report.notes.append("cone_hits: vehicle.x, vehicle.y or vehicle.psi not recorded")
 
 
 def analyse_run(run: RunData, skip_s: float | None = None) -> MetricsReport:

@@ -158,3 +158,16 @@ def test_cli_plot_and_its_error(tmp_path):
     result = runner.invoke(app, ["plot", str(tmp_path / "missing")])
     assert result.exit_code == 2 and "no such run folder" in result.output
     assert "Traceback" not in result.output
+
+
+def test_map_marks_the_cones_that_were_hit(tmp_path):
+    t = np.arange(0, 301) * 0.01
+    cols = {"vehicle.x": 10.0 * t, "vehicle.y": 0 * t, "vehicle.psi": 0 * t}
+    cones = [[10.0, 0.8], [10.0, -1.0], [20.0, 0.5]]
+    run = load_run(write_run(tmp_path / "r", t, cols, {"name": "iso3888_2",
+                                                       "metrics": {"cones": cones}}))
+    fig, _ = build_figure([run])
+    road = _lines(_axes_by_title(fig)["road and planned trajectories"])
+    hit = road["cone hit (2)"]
+    assert list(zip(hit.get_xdata(), hit.get_ydata())) == [(10.0, 0.8), (20.0, 0.5)]
+    assert list(road["cone"].get_ydata()) == [-1.0]
