@@ -13,7 +13,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from analysis_synthetic import lane_change_run, write_run  # noqa: E402
 
 from cosim import figures_signals as sig  # noqa: E402
-from cosim.compare import compare_runs, run_labels  # noqa: E402
+from cosim.compare import run_labels  # noqa: E402
 from cosim.figures import build_figure, choose_layout, draw_figures  # noqa: E402
 from cosim.metrics import compute_metrics  # noqa: E402
 from cosim.metrics_rundata import AnalysisError, load_run  # noqa: E402
@@ -112,8 +112,13 @@ def test_compare_two_runs_overlays_and_tabulates(tmp_path):
     a = lane_change_run(tmp_path / "a" / "run")
     b = lane_change_run(tmp_path / "b" / "run", offset=0.2)
     (a / "metrics.json").write_text('{"planner_steps": 61, "note": "text is skipped"}')
-    png, csv_path, md_path = compare_runs([a, b], tmp_path / "cmp")
-    assert png.name == "compare_manoeuvre.png" and png.read_bytes()[:4] == b"\x89PNG"
+    app, runner = _cli()
+    result = runner.invoke(app, ["compare", str(a), str(b), "--out", str(tmp_path / "cmp")])
+    assert result.exit_code == 0, result.output
+    assert "| max_abs_yL | 0.1 | 0.3 |" in result.output  # the table is printed
+    png, csv_path, md_path = (tmp_path / "cmp" / name for name in (
+        "compare_manoeuvre.png", "compare_metrics.csv", "compare_metrics.md"))
+    assert png.read_bytes()[:4] == b"\x89PNG"
     with open(csv_path) as f:
         rows = list(csv.reader(f))
     assert rows[0] == ["metric", "a/run", "b/run"]

@@ -172,3 +172,21 @@ def test_real_runs_through_the_default_run_function(tmp_path):
         assert iz == sample.values[0]
         for name, value in compute_metrics(run_dir).items():
             assert sample.metrics[name] == value
+
+
+def test_sweep_joins_an_existing_scheduler_by_address(tmp_path):
+    from distributed import LocalCluster
+
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text("name: s\n")
+    varies = ["components.vehicle.uncertainty.m.scale=0.7:1.2",
+              "components.vehicle.parameters.mu=0.3:1.0"]
+    with LocalCluster(processes=False, n_workers=1, threads_per_worker=1,
+                      dashboard_address=None) as cluster:
+        result = run_sweep(scenario, varies, samples=3, seed=1, out_dir=tmp_path / "out",
+                           scheduler=cluster.scheduler_address, run_fn=fake_run,
+                           sets=["duration=1"])
+        assert len(cluster.scheduler.workers) == 1  # the cluster outlives the sweep
+    points = sample_points([parse_vary(v) for v in varies], 3, 1)
+    assert [s.metrics["rms_yc"] for s in result.samples] == (2.0 * points[:, 0]).tolist()
+    assert json.loads((tmp_path / "out" / "sweep.json").read_text())["scheduler"].startswith("inproc://")
