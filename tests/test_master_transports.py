@@ -94,3 +94,41 @@ def test_killed_component_process_ends_the_run_with_its_name(tmp_path, capsys):
     pid = manifest["pids"]["gain"]
     with pytest.raises(ProcessLookupError):  # no process left behind
         os.kill(pid, 0)
+
+
+def test_live_watcher_sees_the_recorded_values(tmp_path):
+    """A watcher started by hand during a run receives rows identical to signals.csv."""
+    import threading
+    import time
+
+    from cosim.zenoh_transport.live import watch
+
+    scenario = tmp_path / "gain.yaml"
+    scenario.write_text(GOOD)
+    out = tmp_path / "live"
+    received: list = []
+
+    def watcher() -> None:
+        manifest = out / "manifest.json"
+        for _ in range(400):  # wait for the run to announce its live endpoint
+            if manifest.is_file() and "live" in json.loads(manifest.read_text()):
+                break
+            time.sleep(0.05)
+        live = json.loads(manifest.read_text())["live"]
+        for tick, t, values in watch(live["run_id"], live["endpoint"]):
+            received.append((tick, t, values))
+            if len(received) >= 5:
+                return
+
+    thread = threading.Thread(target=watcher, daemon=True)
+    thread.start()
+    # 2 s of simulated time paced at real time leaves the watcher time to connect
+    assert _run(scenario, out, "zenoh", "--set", "duration=2.0", "--realtime", "1") == 0
+    thread.join(timeout=30)
+    assert len(received) == 5
+    names, data = read_signals(out / "signals.csv")
+    for tick, t, values in received:
+        assert sorted(values) == sorted(names[1:])
+        row = data[tick]
+        assert row[0] == t
+        assert [values[n] for n in names[1:]] == row[1:].tolist()
