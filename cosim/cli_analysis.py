@@ -104,6 +104,10 @@ def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
     except UserError as exc:
         raise _fail(exc) from None
     _print_summary(result)
+    if result.summary:
+        from cosim.figures_sweep import draw_sweep_histograms
+
+        typer.echo(f"figure: {draw_sweep_histograms(result)}")
     typer.echo(f"results: {result.out_dir}")
 
 

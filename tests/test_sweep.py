@@ -190,3 +190,17 @@ def test_sweep_joins_an_existing_scheduler_by_address(tmp_path):
     points = sample_points([parse_vary(v) for v in varies], 3, 1)
     assert [s.metrics["rms_yc"] for s in result.samples] == (2.0 * points[:, 0]).tolist()
     assert json.loads((tmp_path / "out" / "sweep.json").read_text())["scheduler"].startswith("inproc://")
+
+
+def test_sweep_histograms_one_panel_per_metric(tmp_path):
+    from cosim.figures_sweep import sweep_figure
+
+    samples = {"rms_yc": [0.1, 0.2, 0.4], "max_abs_ex": [1.0, 2.0, 3.0], "cone_hits": [0, 1, 1],
+               "mu_hat_final": [0.5, 0.6, 0.7], "max_abs_ay": [2.0, 2.5, 2.2]}
+    summary = {name: summarize(values) for name, values in samples.items()}
+    fig = sweep_figure(samples, summary)
+    visible = [ax for ax in fig.axes if ax.get_visible()]
+    assert [ax.get_title() for ax in visible] == [f"{n} (n=3)" for n in samples]
+    p95 = [line for line in visible[0].get_lines() if line.get_label() == "p95"][0]
+    assert p95.get_xdata()[0] == summary["rms_yc"]["p95"]
+    assert sum(patch.get_height() for patch in visible[2].patches) == 3
