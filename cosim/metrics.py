@@ -49,14 +49,14 @@ class MetricsReport:
 
 
 def rms(t: np.ndarray, v: np.ndarray) -> float:
-    """Time-weighted RMS of v(t) by the trapezoid rule (|v| for one sample).
+    """Time-weighted RMS of v(t) by the trapezoid rule (plain RMS when t spans no time).
 
     Args:
         t: strictly increasing times.
         v: values at those times.
     """
-    if len(v) == 1:
-        return float(abs(v[0]))
+    if len(v) == 1 or t[-1] == t[0]:
+        return float(np.sqrt(np.mean(v * v)))
     return float(np.sqrt(np.trapezoid(v * v, t) / (t[-1] - t[0])))
 
 

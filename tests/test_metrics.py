@@ -35,6 +35,7 @@ def test_rms_of_sine_over_whole_periods_is_amplitude_over_sqrt2(tmp_path):
 
 def test_rms_single_sample_and_constant():
     assert rms(np.array([0.0]), np.array([-2.5])) == 2.5
+    assert rms(np.array([1.0, 1.0]), np.array([3.0, -4.0])) == pytest.approx(math.sqrt(12.5))
     assert rms(np.array([0.0, 0.3, 1.0]), np.array([-2.0, -2.0, -2.0])) == pytest.approx(2.0)
 
 
