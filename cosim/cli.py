@@ -203,6 +203,10 @@ from cosim.worker_cli import register as _register_distributed  # noqa: E402
 
 _register_distributed(app)
 
+from cosim.cli_analysis import register as _register_analysis  # noqa: E402
+
+_register_analysis(app)
+
 
 def normalize_realtime(argv: Sequence[str]) -> list[str]:
     """Give a bare `--realtime` its default factor 1.0 (click has no optional values).

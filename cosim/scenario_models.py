@@ -11,7 +11,7 @@ from __future__ import annotations
 import fnmatch
 import math
 from pathlib import Path
-from typing import Annotated, Any, Union
+from typing import Annotated, Any, Literal, Union
 
 from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field,
                       FiniteFloat, NonNegativeFloat, PositiveFloat, PrivateAttr, Tag,
@@ -190,6 +190,8 @@ class MetricsSpec(BaseModel):
     cones: list[tuple[FiniteFloat, FiniteFloat]] = []
     vehicle_length: PositiveFloat = 4.5
     vehicle_width: PositiveFloat = 1.8
+    vehicle_front: PositiveFloat | None = None   # CG to front bumper, m; None: half the length
+    figures: Literal["track", "manoeuvre"] | None = None   # None: chosen from the run
 
 
 class Scenario(BaseModel):
