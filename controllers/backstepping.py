@@ -1,9 +1,12 @@
 """The paper's combined longitudinal-lateral backstepping controller as a component.
 
-`BacksteppingController` wraps the pure laws of backstepping_longitudinal
-(eq. 7) and backstepping_lateral (eq. 9-13, faithful or feedforward variant),
-with the optional adaptive friction estimate, the actuator limits and the
-window projection. Each step:
+`BacksteppingController` wraps the laws of backstepping_longitudinal (eq. 7)
+and backstepping_lateral (eq. 9-13, faithful or feedforward variant), with the
+optional adaptive friction estimate, the actuator limits and the window
+projection. The step runs every tick, so it uses the scalar forms (eq. 7
+inline, ScalarLateralLaw, the window checked and prepared once per new window
+by control_common.InputReader); tests hold it to the readable numpy forms.
+Each step:
 
 1. dt from consecutive step times (first step: `period`);
 2. friction estimate: explicit Euler with the previous step's mu_hat_dot, then
@@ -32,14 +35,10 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 from cosim.component import Component, ComponentError, Port, Value
-from controllers.backstepping_lateral import (LateralGains, LateralMeasurement, lateral_law,
-                                              project_mu)
-from controllers.backstepping_longitudinal import longitudinal_law, nominal_vx_dot
+from controllers.backstepping_lateral import LateralGains, ScalarLateralLaw
 from controllers.control_common import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits,
-                                        PathErrors, PlantMeasurement, SteeringLimiter, StepClock,
-                                        empty_window_outputs, outputs_to_floats, path_errors,
-                                        read_inputs)
-from controllers.window_projection import is_empty
+                                        InputReader, SteeringLimiter, StepClock,
+                                        empty_window_outputs, finite_outputs, path_errors)
 from controllers.vehicle_params import VehicleParams
 
 BACKSTEPPING_OUTPUTS: tuple[Port, ...] = COMMAND_OUTPUTS + (
@@ -53,6 +52,7 @@ BACKSTEPPING_OUTPUTS: tuple[Port, ...] = COMMAND_OUTPUTS + (
     Port("V2", unit="1", description="lateral Lyapunov function (e^T e + z^T z) / 2"),
     Port("V3", unit="1", description="V2 + (mu_true - mu_hat)^2 / (2 g_mu) (diagnostic)"),
 )
+OUTPUT_NAMES: tuple[str, ...] = tuple(port.name for port in BACKSTEPPING_OUTPUTS)
 
 
 def _gain_pair(name: str, value: float | Sequence[float]) -> tuple[float, float]:
@@ -113,36 +113,29 @@ class BacksteppingController(Component):
         self.clock = StepClock(period)
         self.mu_hat = float(mu0)
         self.mu_hat_dot = 0.0
+        self.reader = InputReader()
+        self.lateral = ScalarLateralLaw(self.params, self.gains)
+        self._me, self._kxgx = self.params.me, self.kx + self.gx
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """One control step at time t (see module docstring)."""
         dt = self.clock.advance(t)
-        plant, window = read_inputs(inputs, t)
-        if is_empty(window):
+        (x, y, psi, vx, vy, r), window = self.reader.read(inputs, t)
+        if window is None:
             return empty_window_outputs(self.outputs, self.steering.last) | {"mu_hat": self.mu_hat}
-        self.mu_hat = project_mu(self.mu_hat + dt * self.mu_hat_dot, self.mu_min, self.mu_max)
-        errors = path_errors(window, plant, self.gains.ls)
-        lon = longitudinal_law(plant.vx, errors.vx_ref, errors.vx_ref_dot, plant.vy, plant.r,
-                               self.params, self.kx, self.gx)
-        torque = self.limits.torque(lon.torque)
-        lat = lateral_law(self._measurement(plant, errors, torque), self.mu_hat, self.params,
-                          self.gains, self.g_mu)
-        delta = self.steering.apply(lat.delta, dt)
-        limited = abs(delta - lat.delta) > 1e-12
-        self.mu_hat_dot = 0.0 if limited or plant.vx < self.gains.v_min else lat.mu_hat_dot
-        v3 = lat.V2 + ((self.mu_true - self.mu_hat) ** 2 / (2.0 * self.g_mu) if self.g_mu > 0.0 else 0.0)
-        try:
-            return outputs_to_floats({
-                "delta": delta, "torque": torque, "yL": errors.y_l, "psiL": errors.psi_l,
-                "yc": errors.y_c, "ex": lon.ex, "vx_ref": errors.vx_ref, "rho": errors.rho,
-                "mu_hat": self.mu_hat, "alpha_vy": lat.alpha[0], "alpha_r": lat.alpha[1],
-                "z_vy": lat.z[0], "z_r": lat.z[1], "V": lon.V, "V2": lat.V2, "V3": v3})
-        except ComponentError as error:
-            raise ComponentError(f"at t = {t}: {error}") from None
-
-    def _measurement(self, plant: PlantMeasurement, errors: PathErrors, torque: float) -> LateralMeasurement:
-        """The lateral law's inputs, with vx_dot predicted from the applied torque."""
-        return LateralMeasurement(
-            y_l=errors.y_l, psi_l=errors.psi_l, vy=plant.vy, r=plant.r, vx=plant.vx,
-            vx_dot=nominal_vx_dot(torque, plant.vy, plant.r, self.params),
-            rho=errors.rho, rho_dot=errors.rho_dot)
+        mu_hat = self.mu_hat = min(self.mu_max, max(self.mu_min, self.mu_hat + dt * self.mu_hat_dot))
+        y_l, psi_l, y_c, rho, rho_dot, vx_ref, vx_ref_dot = path_errors(window, x, y, psi, vx, self.gains.ls)
+        # eq. 7 (longitudinal_law), then the nominal model's vx_dot with the applied torque
+        m, me, rw = self.params.m, self._me, self.params.Rw
+        ex = vx - vx_ref
+        torque = self.limits.torque(rw * (-self._kxgx * ex - m * vy * r + me * vx_ref_dot))
+        vx_dot = (torque / rw + m * vy * r) / me
+        command, alpha_vy, alpha_r, z_vy, z_r, mu_hat_dot, v2 = self.lateral.command(
+            y_l, psi_l, vy, r, vx, vx_dot, rho, rho_dot, mu_hat, self.g_mu)
+        delta = self.steering.apply(command, dt)
+        limited = abs(delta - command) > 1e-12
+        self.mu_hat_dot = 0.0 if limited or vx < self.gains.v_min else mu_hat_dot
+        v3 = v2 + ((self.mu_true - mu_hat) ** 2 / (2.0 * self.g_mu) if self.g_mu > 0.0 else 0.0)
+        return finite_outputs(OUTPUT_NAMES, (
+            delta, torque, y_l, psi_l, y_c, ex, vx_ref, rho, mu_hat, alpha_vy, alpha_r, z_vy, z_r,
+            0.5 * me * ex * ex, v2, v3), t)

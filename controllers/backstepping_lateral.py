@@ -216,6 +216,96 @@ def lateral_law(m: LateralMeasurement, mu_hat: float, params: VehicleParams, gai
                           V1=v1, V2=v1 + 0.5 * float(z @ z))
 
 
+class ScalarLateralLaw:
+    """lateral_law in scalar arithmetic with constants precomputed: the controller's per-tick form.
+
+    Same equations as lateral_law and path_reference (the numpy forms, kept as
+    the readable reference; a test holds the two together), written out for
+    the 2x2 matrices and 2-vectors, with everything that depends only on the
+    parameters and gains computed once.
+
+    Args:
+        params: the controller's nominal vehicle parameters; gains: gains and law selection.
+    """
+
+    def __init__(self, params: VehicleParams, gains: LateralGains) -> None:
+        m, iz, cf, cr, lf, lr = params.m, params.Iz, params.Cf, params.Cr, params.lf, params.lr
+        self.gains = gains
+        self.ls, self.v_min = gains.ls, gains.v_min
+        self.k1, self.k2 = gains.ke
+        self.feedforward, self.at_cg = gains.law == "feedforward", gains.ff_target == "cg"
+        # A1(vx) = c / vx, entry by entry
+        self.c00, self.c01 = -2.0 * (cf + cr) / m, 2.0 * (cr * lr - cf * lf) / m
+        self.c10, self.c11 = 2.0 * (cr * lr - cf * lf) / iz, -2.0 * (cf * lf**2 + cr * lr**2) / iz
+        self.b0, self.b1 = 2.0 * cf / m, 2.0 * cf * lf / iz
+        self.bb = self.b0 * self.b0 + self.b1 * self.b1
+        d0, d1 = 1.0 / m, params.lw / iz
+        self.g00, self.g01 = gains.kz + gains.gz * d0 * d0, gains.gz * d0 * d1
+        self.g11 = gains.kz + gains.gz * d1 * d1
+
+    def _unit(self, vx: float, mu: float) -> tuple[float, float, float]:
+        """steady_state_per_curvature's [psiL, vy, r] per unit curvature."""
+        a00, a01 = mu * self.c00 / vx, mu * self.c01 / vx - vx
+        a10, a11 = mu * self.c10 / vx, mu * self.c11 / vx
+        b1, b2 = mu * self.b0, mu * self.b1
+        det = a00 * b2 - a10 * b1
+        if abs(det) < 1e-12 * max(abs(a00 * b2), abs(a10 * b1)):
+            raise ComponentError(f"no steady-state steer at vx = {vx} m/s: model matrix is singular")
+        rhs1, rhs2 = -a01 * vx, -a11 * vx
+        vy = (rhs1 * b2 - rhs2 * b1) / det
+        return -(vy + self.ls * vx) / vx, vy, vx
+
+    def reference(self, vx: float, vx_dot: float, rho: float, rho_dot: float,
+                  mu_hat: float) -> tuple[float, ...]:
+        """path_reference as (yr, psir, yr_dot, psir_dot, vyr, rr, vyr_dot, rr_dot); vx already floored."""
+        ls = self.ls
+        if not self.feedforward:
+            kin, kin_dot = vx * rho, vx_dot * rho + vx * rho_dot
+            return 0.0, 0.0, 0.0, 0.0, -ls * kin, kin, -ls * kin_dot, kin_dot
+        u0, u1, u2 = self._unit(vx, mu_hat)
+        step = 1e-4 * vx
+        p0, p1, p2 = self._unit(vx + step, mu_hat)
+        n0, n1, n2 = self._unit(vx - step, mu_hat)
+        two = 2.0 * step
+        f = rho * vx_dot
+        dot0 = u0 * rho_dot + (p0 - n0) / two * f
+        dot1 = u1 * rho_dot + (p1 - n1) / two * f
+        dot2 = u2 * rho_dot + (p2 - n2) / two * f
+        psi_r = u0 * rho
+        if self.at_cg:
+            y_r, y_r_dot = ls * psi_r + 0.5 * ls * ls * rho, ls * dot0 + 0.5 * ls * ls * rho_dot
+        else:
+            y_r, y_r_dot = 0.0, 0.0
+        return y_r, psi_r, y_r_dot, dot0, u1 * rho, u2 * rho, dot1, dot2
+
+    def command(self, y_l: float, psi_l: float, vy: float, r: float, vx: float, vx_dot: float,
+                rho: float, rho_dot: float, mu_hat: float, g_mu: float) -> tuple[float, ...]:
+        """lateral_law as (delta, alpha_vy, alpha_r, z_vy, z_r, mu_hat_dot, V2).
+
+        Args: as LateralMeasurement's fields (vx measured, floored here), then mu_hat and g_mu.
+        """
+        vx = max(vx, self.v_min)
+        ls, k1, k2 = self.ls, self.k1, self.k2
+        y_r, psi_r, y_r_dot, psi_r_dot, vy_r, r_r, vy_r_dot, r_r_dot = self.reference(
+            vx, vx_dot, rho, rho_dot, mu_hat)
+        e0, e1 = y_l - y_r, psi_l - psi_r
+        ed0, ed1 = vx * psi_l + vy + ls * r - y_r_dot, r - vx * rho - psi_r_dot
+        u0, u1 = -k1 * e0 - vx * e1, -k2 * e1                  # g^-1 = [[1, -ls], [0, 1]]
+        alpha0, alpha1 = vy_r + (u0 - ls * u1), r_r + u1
+        u0, u1 = -k1 * ed0 - (vx_dot * e1 + vx * ed1), -k2 * ed1
+        alpha_dot0, alpha_dot1 = vy_r_dot + (u0 - ls * u1), r_r_dot + u1
+        z0, z1 = vy - alpha0, r - alpha1
+        a00, a01, a10, a11 = self.c00 / vx, self.c01 / vx, self.c10 / vx, self.c11 / vx
+        a1x0, a1x1 = a00 * vy + a01 * r, a10 * vy + a11 * r
+        # v = -G z - (mu A1 + A2) x + alpha_dot - g^T e,  A2 x = [-vx r, 0],  g^T = [[1, 0], [ls, 1]]
+        v0 = (-(self.g00 * z0 + self.g01 * z1) - (mu_hat * a1x0 - vx * r) + alpha_dot0 - e0)
+        v1 = (-(self.g01 * z0 + self.g11 * z1) - mu_hat * a1x1 + alpha_dot1 - (ls * e0 + e1))
+        delta = (self.b0 * v0 + self.b1 * v1) / (mu_hat * self.bb)
+        mu_hat_dot = (g_mu / mu_hat) * (z0 * (v0 + mu_hat * a1x0) + z1 * (v1 + mu_hat * a1x1))
+        v1_lyap = 0.5 * (e0 * e0 + e1 * e1)
+        return delta, alpha0, alpha1, z0, z1, mu_hat_dot, v1_lyap + 0.5 * (z0 * z0 + z1 * z1)
+
+
 def project_mu(mu_hat: float, mu_min: float, mu_max: float) -> float:
     """Projection of the friction estimate onto [mu_min, mu_max].
 

@@ -27,11 +27,13 @@ from collections.abc import Mapping
 
 from cosim.component import Component, ComponentError, Value
 from controllers.control_common import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits,
-                                        PlantMeasurement, SpeedPI, SteeringLimiter, StepClock,
-                                        empty_window_outputs, outputs_to_floats, path_errors,
-                                        read_inputs)
+                                        InputReader, SpeedPI, SteeringLimiter, StepClock,
+                                        empty_window_outputs, finite_outputs, path_errors)
 from controllers.vehicle_params import VehicleParams
-from controllers.window_projection import PreparedWindow, is_empty, point_at, project, wrap_angle
+from controllers.window_projection import PreparedWindow, foot, point_at, wrap_angle
+
+OUTPUT_NAMES: tuple[str, ...] = tuple(port.name for port in COMMAND_OUTPUTS)
+HINT = 2      # the PreparedWindow hint slot of the steering law's own projection
 
 
 class _BaselineController(Component):
@@ -52,27 +54,23 @@ class _BaselineController(Component):
         self.steering = SteeringLimiter(self.limits)
         self.speed = SpeedPI(kp, ki, self.params.me, self.params.Rw, self.limits)
         self.clock = StepClock(period)
+        self.reader = InputReader()
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """One control step at time t."""
         dt = self.clock.advance(t)
-        plant, window = read_inputs(inputs, t)
-        if is_empty(window):
+        plant, window = self.reader.read(inputs, t)
+        if window is None:
             return empty_window_outputs(self.outputs, self.steering.last)
-        prepared = PreparedWindow(window)
-        errors = path_errors(prepared, plant, self.ls)
-        ex = plant.vx - errors.vx_ref
-        torque = self.speed.torque(ex, errors.vx_ref_dot, dt)
-        delta = self.steering.apply(self.steer(plant, prepared), dt)
-        try:
-            return outputs_to_floats({"delta": delta, "torque": torque, "yL": errors.y_l,
-                                      "psiL": errors.psi_l, "yc": errors.y_c, "ex": ex,
-                                      "vx_ref": errors.vx_ref})
-        except ComponentError as error:
-            raise ComponentError(f"at t = {t}: {error}") from None
+        x, y, psi, vx = plant[:4]
+        y_l, psi_l, y_c, _, _, vx_ref, vx_ref_dot = path_errors(window, x, y, psi, vx, self.ls)
+        ex = vx - vx_ref
+        torque = self.speed.torque(ex, vx_ref_dot, dt)
+        delta = self.steering.apply(self.steer(plant, window), dt)
+        return finite_outputs(OUTPUT_NAMES, (delta, torque, y_l, psi_l, y_c, ex, vx_ref), t)
 
-    def steer(self, plant: PlantMeasurement, window: PreparedWindow) -> float:
-        """Steering command before limits (subclasses)."""
+    def steer(self, plant: tuple[float, ...], window: PreparedWindow) -> float:
+        """Steering command before limits from (x, y, psi, vx, vy, r) (subclasses)."""
         raise NotImplementedError
 
 
@@ -98,15 +96,17 @@ class PurePursuitController(_BaselineController):
             raise ComponentError(f"need ld_min > 0 and ld_gain >= 0, got {ld_min!r}, {ld_gain!r}")
         self.ld_min, self.ld_gain = float(ld_min), float(ld_gain)
 
-    def steer(self, plant: PlantMeasurement, window: PreparedWindow) -> float:
+    def steer(self, plant: tuple[float, ...], window: PreparedWindow) -> float:
         """Pure Pursuit steering angle from the rear axle towards the look-ahead point."""
-        rear_x = plant.x - self.params.lr * math.cos(plant.psi)
-        rear_y = plant.y - self.params.lr * math.sin(plant.psi)
-        look_ahead = max(self.ld_min, self.ld_gain * plant.vx)
-        foot = project(window, rear_x, rear_y)
-        target_x, target_y = point_at(window, foot.s + look_ahead)
+        x, y, psi, vx = plant[:4]
+        rear_x = x - self.params.lr * math.cos(psi)
+        rear_y = y - self.params.lr * math.sin(psi)
+        look_ahead = max(self.ld_min, self.ld_gain * vx)
+        at_rear = foot(window, rear_x, rear_y, window.hints[HINT])
+        window.hints[HINT] = at_rear[10]
+        target_x, target_y = point_at(window, at_rear[0] + look_ahead)
         distance = math.hypot(target_x - rear_x, target_y - rear_y)
-        bearing = wrap_angle(math.atan2(target_y - rear_y, target_x - rear_x) - plant.psi)
+        bearing = wrap_angle(math.atan2(target_y - rear_y, target_x - rear_x) - psi)
         return math.atan(2.0 * self.params.wheelbase * math.sin(bearing) / max(distance, 1e-6))
 
 
@@ -132,9 +132,11 @@ class StanleyController(_BaselineController):
             raise ComponentError(f"need k_stanley > 0 and k_soft > 0, got {k_stanley!r}, {k_soft!r}")
         self.k_stanley, self.k_soft = float(k_stanley), float(k_soft)
 
-    def steer(self, plant: PlantMeasurement, window: PreparedWindow) -> float:
+    def steer(self, plant: tuple[float, ...], window: PreparedWindow) -> float:
         """Stanley steering angle from the front axle's heading and cross-track errors."""
-        front = project(window, plant.x + self.params.lf * math.cos(plant.psi),
-                        plant.y + self.params.lf * math.sin(plant.psi))
-        heading_error = wrap_angle(front.psi_path - plant.psi)
-        return heading_error + math.atan(-self.k_stanley * front.offset / (self.k_soft + plant.vx))
+        x, y, psi, vx = plant[:4]
+        front = foot(window, x + self.params.lf * math.cos(psi), y + self.params.lf * math.sin(psi),
+                     window.hints[HINT])
+        window.hints[HINT] = front[10]
+        heading_error = wrap_angle(front[4] - psi)
+        return heading_error + math.atan(-self.k_stanley * front[3] / (self.k_soft + vx))

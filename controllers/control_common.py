@@ -18,13 +18,16 @@ acceleration are read at the CG's foot point.
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+import numpy as np
+
 from cosim.component import ComponentError, Port, Value
-from controllers.trajectory import TrajectoryWindow, window_ports
-from controllers.window_projection import (PreparedWindow, WindowError, is_empty, project,
-                                           validate_window, wrap_angle)
+from controllers.trajectory import FIELDS, TrajectoryWindow, window_ports
+from controllers.window_projection import (PreparedWindow, WindowError, foot, is_empty,
+                                           validate_window)
 
 PLANT_INPUTS: tuple[Port, ...] = (
     Port("x", unit="m", description="CG world x"),
@@ -46,69 +49,89 @@ COMMAND_OUTPUTS: tuple[Port, ...] = (
 )
 
 
-@dataclass(frozen=True)
-class PlantMeasurement:
-    """The plant outputs a controller reads."""
-
-    x: float
-    y: float
-    psi: float
-    vx: float
-    vy: float
-    r: float
+PLANT_NAMES: tuple[str, ...] = tuple(port.name for port in PLANT_INPUTS)
+WINDOW_NAMES: tuple[str, ...] = tuple(f"ref_{name}" for name, _, _ in FIELDS)
+_pick_plant = operator.itemgetter(*PLANT_NAMES)
+_pick_window = operator.itemgetter(*WINDOW_NAMES)
 
 
-@dataclass(frozen=True)
-class PathErrors:
-    """Errors and reference read from the window (see module docstring)."""
+class InputReader:
+    """Checks and unpacks a controller's inputs; the window is checked and prepared once per change.
 
-    y_l: float
-    psi_l: float
-    y_c: float
-    rho: float
-    rho_dot: float
-    vx_ref: float
-    vx_ref_dot: float
-
-
-def read_inputs(inputs: Mapping[str, Value], t: float) -> tuple[PlantMeasurement, TrajectoryWindow]:
-    """Check and unpack a controller's inputs; ComponentError names the port, time and value.
-
-    Args:
-        inputs: the step's input mapping (PLANT_INPUTS and the ref_* window).
-        t: the step's time, for messages.
+    The window only changes when the planner steps, so `read` keeps the
+    PreparedWindow of the last one and reuses it while the same arrays come in
+    again: the very same read-only arrays that own their data (the in-process
+    master's frozen values), or arrays with the same bytes (a transport that
+    decodes fresh arrays every tick). Anything else is checked and prepared anew.
     """
-    values = {}
-    for port in PLANT_INPUTS:
-        value = float(inputs[port.name])
-        if not math.isfinite(value):
-            raise ComponentError(f"input {port.name!r} is not finite at t = {t}: {value}")
-        values[port.name] = value
-    window = TrajectoryWindow.from_signals(inputs, "ref")
-    if not is_empty(window):
+
+    def __init__(self) -> None:
+        self._arrays: tuple = ()
+        self._frozen = False
+        self._content = b""
+        self._prepared: PreparedWindow | None = None
+
+    def read(self, inputs: Mapping[str, Value], t: float) -> tuple[tuple[float, ...], PreparedWindow | None]:
+        """((x, y, psi, vx, vy, r), prepared window or None when empty); ComponentError names port, t, value.
+
+        Args:
+            inputs: the step's input mapping (PLANT_INPUTS and the ref_* window).
+            t: the step's time, for messages.
+        """
+        plant = tuple(map(float, _pick_plant(inputs)))
+        if not math.isfinite(sum(plant)):
+            for name, value in zip(PLANT_NAMES, plant):
+                if not math.isfinite(value):
+                    raise ComponentError(f"input {name!r} is not finite at t = {t}: {value}")
+        arrays = _pick_window(inputs)
+        if self._frozen and all(map(operator.is_, arrays, self._arrays)):
+            return plant, self._prepared
+        try:
+            content = b"".join([array.tobytes() for array in arrays])
+        except AttributeError:       # not numpy arrays: the full path converts them
+            content = None
+        if content is None or content != self._content or not self._arrays:
+            self._prepare(inputs, t)
+            content = b"".join([getattr(self._window, name).tobytes() for name, _, _ in FIELDS])
+        self._arrays, self._content = arrays, content
+        self._frozen = all(isinstance(a, np.ndarray) and a.flags.owndata and not a.flags.writeable
+                           and a.dtype == np.float64 for a in arrays)
+        return plant, self._prepared
+
+    def _prepare(self, inputs: Mapping[str, Value], t: float) -> None:
+        """Check the window and keep its PreparedWindow (None for an all-zero window)."""
+        window = TrajectoryWindow.from_signals(inputs, "ref")
+        self._window = window
+        if is_empty(window):
+            self._prepared = None
+            return
         try:
             validate_window(window, "ref")
         except WindowError as error:
+            self._arrays, self._frozen = (), False
             raise ComponentError(f"bad trajectory window at t = {t}: {error}") from None
-    return PlantMeasurement(**values), window
+        self._prepared = PreparedWindow(window)
 
 
-def path_errors(window: TrajectoryWindow | PreparedWindow, plant: PlantMeasurement, ls: float) -> PathErrors:
+def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,
+                ls: float) -> tuple[float, ...]:
     """Errors at the preview point and the reference speed at the CG's foot point.
 
     Args:
-        window: a valid, non-empty trajectory window (or a PreparedWindow of it).
-        plant: the measured state.
+        w: a PreparedWindow of a valid, non-empty window (its `hints` are updated).
+        x, y, psi, vx: the measured CG position, yaw angle and speed.
         ls: preview distance [m].
+    Returns:
+        (yL, psiL, yc, rho, rho_dot, vx_ref, vx_ref_dot), see the module docstring.
     """
-    window = window if isinstance(window, PreparedWindow) else PreparedWindow(window)
-    cos_psi, sin_psi = math.cos(plant.psi), math.sin(plant.psi)
-    preview = project(window, plant.x + ls * cos_psi, plant.y + ls * sin_psi)
-    at_cg = project(window, plant.x, plant.y)
-    psi_l = wrap_angle(plant.psi - preview.psi_path)
-    return PathErrors(y_l=preview.offset, psi_l=psi_l, y_c=at_cg.offset,
-                      rho=preview.kappa, rho_dot=preview.dkappa_ds * plant.vx,
-                      vx_ref=at_cg.v, vx_ref_dot=at_cg.a)
+    hints = w.hints
+    at_cg = foot(w, x, y, hints[0])
+    hints[0] = at_cg[10]
+    hint = hints[1] if hints[1] >= 0 else at_cg[10]
+    preview = foot(w, x + ls * math.cos(psi), y + ls * math.sin(psi), hint)
+    hints[1] = preview[10]
+    psi_l = (psi - preview[4] + math.pi) % (2.0 * math.pi) - math.pi     # wrap_angle, inlined
+    return preview[3], psi_l, at_cg[3], preview[5], preview[6] * vx, at_cg[7], at_cg[8]
 
 
 class StepClock:
@@ -210,15 +233,17 @@ class SpeedPI:
         return applied
 
 
-def outputs_to_floats(values: Mapping[str, float]) -> dict[str, float]:
-    """Convert every value to a Python float, refusing non-finite ones (ComponentError)."""
-    result = {}
-    for name, value in values.items():
-        value = float(value)
-        if not math.isfinite(value):
-            raise ComponentError(f"output {name!r} is not finite: {value}")
-        result[name] = value
-    return result
+def finite_outputs(names: tuple[str, ...], values: tuple[float, ...], t: float) -> dict[str, float]:
+    """The outputs as a dict of floats, refusing non-finite ones (ComponentError naming output, t, value).
+
+    Args:
+        names: output names; values: their float values, in the same order; t: the step's time.
+    """
+    if not math.isfinite(sum(values)):      # one cheap test; the loop only runs on a problem
+        for name, value in zip(names, values):
+            if not math.isfinite(value):
+                raise ComponentError(f"at t = {t}: output {name!r} is not finite: {value}")
+    return dict(zip(names, values))
 
 
 def empty_window_outputs(names: tuple[Port, ...], delta: float) -> dict[str, float]:
@@ -228,6 +253,6 @@ def empty_window_outputs(names: tuple[Port, ...], delta: float) -> dict[str, flo
     return values
 
 
-__all__ = ["ActuatorLimits", "COMMAND_OUTPUTS", "CONTROLLER_INPUTS", "PLANT_INPUTS", "PathErrors",
-           "PlantMeasurement", "SpeedPI", "SteeringLimiter", "StepClock", "empty_window_outputs",
-           "outputs_to_floats", "path_errors", "read_inputs"]
+__all__ = ["ActuatorLimits", "COMMAND_OUTPUTS", "CONTROLLER_INPUTS", "InputReader", "PLANT_INPUTS",
+           "PLANT_NAMES", "SpeedPI", "SteeringLimiter", "StepClock", "WINDOW_NAMES",
+           "empty_window_outputs", "finite_outputs", "path_errors"]

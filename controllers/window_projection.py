@@ -4,8 +4,11 @@ Between two window points the path is a cubic Hermite curve through both
 positions with the tangents given by the headings (scaled by the arc-length
 step), which matches circles and clothoids to fourth order in the point
 spacing; the foot point is found on the nearest chord, then refined by Newton
-iterations on that curve. Heading, curvature, speed and acceleration are
-interpolated linearly in arc length; dkappa/ds is the segment's slope.
+iterations on that curve. The nearest chord is the global minimum over the
+window (first index on ties), found from a hint chord by a descent and a scan
+that skips runs of chords too far away to matter (see PreparedWindow).
+Heading, curvature, speed and acceleration are interpolated linearly in arc
+length; dkappa/ds is the segment's slope.
 
 A point before the first window point or after the last one is projected on
 the straight extension of the end tangent: arc length and offset follow that
@@ -93,24 +96,93 @@ def validate_window(window: TrajectoryWindow, prefix: str = "ref") -> None:
 class PreparedWindow:
     """A window with its chords precomputed and its fields as Python lists (fast scalar access).
 
+    Besides the fields it keeps, per chord i (from point i to i + 1), the start,
+    the direction and the squared length, and `reach`, an upper bound of the
+    polyline length from point 0 to point k (the chords' cumulative length,
+    inflated against rounding): the exact nearest-chord search uses it to skip
+    chords that cannot be nearer than the best one found so far.
+
     Args:
         window: a valid trajectory window.
     """
 
     def __init__(self, window: TrajectoryWindow) -> None:
-        self.x0, self.y0 = window.x[:-1], window.y[:-1]
-        self.dx, self.dy = np.diff(window.x), np.diff(window.y)
-        self.length2 = np.maximum(self.dx * self.dx + self.dy * self.dy, 1e-300)
-        self.x, self.y, self.psi = window.x.tolist(), window.y.tolist(), window.psi.tolist()
+        x, y = window.x.tolist(), window.y.tolist()
+        self.x, self.y, self.psi = x, y, window.psi.tolist()
         self.kappa, self.s = window.kappa.tolist(), window.s.tolist()
         self.v, self.a = window.v.tolist(), window.a.tolist()
+        self.dx = [b - a for a, b in zip(x[:-1], x[1:])]
+        self.dy = [b - a for a, b in zip(y[:-1], y[1:])]
+        self.length2 = [max(dx * dx + dy * dy, 1e-300) for dx, dy in zip(self.dx, self.dy)]
+        reach = [0.0]
+        for dx, dy in zip(self.dx, self.dy):
+            reach.append(reach[-1] + math.hypot(dx, dy) * (1.0 + 1e-12))
+        self.reach = reach
+        # slack of the skip test: covers rounding in reach, distances and squared distances
+        self.slack = 1e-9 * (1.0 + reach[-1] + max(map(abs, x)) + max(map(abs, y)))
+        self.chords = len(self.dx)
+        self.hints = [-1, -1, -1, -1]     # callers' last chord per query point (-1: none yet)
 
-    def nearest_chord(self, px: float, py: float) -> tuple[int, float]:
-        """Index of the nearest chord segment and the clamped chord parameter of the foot."""
-        t = np.clip(((px - self.x0) * self.dx + (py - self.y0) * self.dy) / self.length2, 0.0, 1.0)
-        dist2 = (self.x0 + t * self.dx - px) ** 2 + (self.y0 + t * self.dy - py) ** 2
-        i = int(np.argmin(dist2))
-        return i, float(t[i])
+    def chord_distance2(self, i: int, px: float, py: float) -> tuple[float, float]:
+        """Squared distance from (px, py) to chord i and the clamped chord parameter of the foot."""
+        x0, y0, dx, dy = self.x[i], self.y[i], self.dx[i], self.dy[i]
+        t = ((px - x0) * dx + (py - y0) * dy) / self.length2[i]
+        t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+        ex, ey = x0 + t * dx - px, y0 + t * dy - py
+        return ex * ex + ey * ey, t
+
+    def nearest_chord(self, px: float, py: float, hint: int = 0) -> tuple[int, float]:
+        """Index of the nearest chord (the first one on ties) and the clamped chord parameter of the foot.
+
+        The answer is the global minimum over all chords, as a full scan would
+        give; `hint` (e.g. the previous answer) only makes it faster: a descent
+        from it finds a near chord, then the chords on each side are scanned,
+        skipping runs whose polyline reach from an anchor point proves them
+        farther than the best one so far.
+
+        Args:
+            px, py: the point; hint: chord index to start from.
+        """
+        distance2 = self.chord_distance2
+        last = self.chords - 1
+        i = min(max(hint, 0), last)
+        best_d, best_t = distance2(i, px, py)
+        lo = hi = i
+        while lo > 0:
+            d, t = distance2(lo - 1, px, py)
+            lo -= 1
+            if d > best_d:
+                break
+            i, best_d, best_t = lo, d, t
+        while hi < last and hi == i:
+            d, t = distance2(hi + 1, px, py)
+            hi += 1
+            if d < best_d:
+                i, best_d, best_t = hi, d, t
+        xs, ys, reach, slack = self.x, self.y, self.reach, self.slack
+        hypot, sqrt = math.hypot, math.sqrt
+        limit = sqrt(best_d) + slack
+        j = hi + 1
+        while j <= last:           # chords j..m lie within reach[m + 1] - reach[j] of point j
+            m = bisect.bisect_left(reach, reach[j] + hypot(px - xs[j], py - ys[j]) - limit) - 2
+            if m >= j:
+                j = m + 1
+                continue
+            d, t = distance2(j, px, py)
+            if d < best_d:
+                i, best_d, best_t, limit = j, d, t, sqrt(d) + slack
+            j += 1
+        j = lo - 1
+        while j >= 0:              # chords m..j lie within reach[j + 1] - reach[m] of point j + 1
+            m = bisect.bisect_right(reach, reach[j + 1] - hypot(px - xs[j + 1], py - ys[j + 1]) + limit)
+            if m <= j:
+                j = m - 1
+                continue
+            d, t = distance2(j, px, py)
+            if d <= best_d:        # a lower index wins a tie
+                i, best_d, best_t, limit = j, d, t, sqrt(d) + slack
+            j -= 1
+        return i, best_t
 
     def segment(self, i: int) -> tuple[float, ...]:
         """End positions and end tangents (scaled by the arc-length step) of segment i."""
@@ -132,10 +204,23 @@ def _hermite(seg: tuple[float, ...], t: float, order: int = 2) -> list[tuple[flo
 
 
 def _refine(seg: tuple[float, ...], t: float, px: float, py: float) -> float:
-    """Newton iterations for the foot parameter on the Hermite curve of a segment."""
+    """Newton iterations for the foot parameter on the Hermite curve of a segment.
+
+    The Hermite weights are written out (the same expressions as _hermite) since
+    this is the projection's inner loop.
+    """
+    x0, y0, mx0, my0, x1, y1, mx1, my1 = seg
     for _ in range(NEWTON_ITERATIONS):
-        (x, y), (dx, dy), (ddx, ddy) = _hermite(seg, t)
-        ex, ey = x - px, y - py
+        t2, t3 = t * t, t * t * t
+        w0, w1, w2, w3 = 2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t, -2 * t3 + 3 * t2, t3 - t2
+        ex = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1 - px
+        ey = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1 - py
+        w0, w1, w2, w3 = 6 * t2 - 6 * t, 3 * t2 - 4 * t + 1, -6 * t2 + 6 * t, 3 * t2 - 2 * t
+        dx = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
+        dy = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
+        w0, w1, w2, w3 = 12 * t - 6, 6 * t - 4, -12 * t + 6, 6 * t - 2
+        ddx = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
+        ddy = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
         slope = dx * dx + dy * dy + ex * ddx + ey * ddy
         if slope <= 0.0:
             break
@@ -146,17 +231,54 @@ def _refine(seg: tuple[float, ...], t: float, px: float, py: float) -> float:
     return t
 
 
-def _extrapolate(w: PreparedWindow, end: int, px: float, py: float) -> Projection | None:
-    """Projection on the tangent line at window point `end` (0 or -1) if the point lies beyond it."""
+def _extrapolate(w: PreparedWindow, end: int, px: float, py: float) -> tuple | None:
+    """foot() on the tangent line at window point `end` (0 or -1) if the point lies beyond it."""
     heading = w.psi[end]
     tx, ty = math.cos(heading), math.sin(heading)
     along = (px - w.x[end]) * tx + (py - w.y[end]) * ty
     if (end == 0 and along >= 0.0) or (end == -1 and along <= 0.0):
         return None
     offset = -(px - w.x[end]) * ty + (py - w.y[end]) * tx
-    return Projection(s=w.s[end] + along, x=w.x[end] + along * tx, y=w.y[end] + along * ty,
-                      offset=offset, psi_path=heading, kappa=w.kappa[end], dkappa_ds=0.0,
-                      v=w.v[end], a=w.a[end], extrapolated=-1 if end == 0 else 1)
+    return (w.s[end] + along, w.x[end] + along * tx, w.y[end] + along * ty, offset, heading,
+            w.kappa[end], 0.0, w.v[end], w.a[end], -1 if end == 0 else 1,
+            0 if end == 0 else w.chords - 1)
+
+
+def foot(w: PreparedWindow, px: float, py: float, hint: int = 0) -> tuple:
+    """project() as a plain tuple, for the controllers' per-tick path.
+
+    Args:
+        w: a PreparedWindow of a valid window; px, py: the point [m];
+        hint: a chord index to start the search from (the previous `chord`), for speed only.
+    Returns:
+        (s, x, y, offset, psi_path, kappa, dkappa_ds, v, a, extrapolated, chord): the
+        Projection's fields in order, then the index of the chord found.
+    """
+    i, t = w.nearest_chord(px, py, hint)
+    if i == 0 and t == 0.0:
+        beyond = _extrapolate(w, 0, px, py)
+        if beyond is not None:
+            return beyond
+    if i == w.chords - 1 and t == 1.0:
+        beyond = _extrapolate(w, -1, px, py)
+        if beyond is not None:
+            return beyond
+    seg = w.segment(i)
+    t = _refine(seg, t, px, py)
+    x0, y0, mx0, my0, x1, y1, mx1, my1 = seg
+    t2, t3 = t * t, t * t * t
+    w0, w1, w2, w3 = 2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t, -2 * t3 + 3 * t2, t3 - t2
+    x = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
+    y = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
+    w0, w1, w2, w3 = 6 * t2 - 6 * t, 3 * t2 - 4 * t + 1, -6 * t2 + 6 * t, 3 * t2 - 2 * t
+    dx = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
+    dy = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
+    norm = max(math.hypot(dx, dy), 1e-300)
+    s, psi, kappa, v, a = w.s, w.psi, w.kappa, w.v, w.a
+    return (s[i] + t * (s[i + 1] - s[i]), x, y, (dx * (py - y) - dy * (px - x)) / norm,
+            psi[i] + t * (psi[i + 1] - psi[i]), kappa[i] + t * (kappa[i + 1] - kappa[i]),
+            (kappa[i + 1] - kappa[i]) / (s[i + 1] - s[i]), v[i] + t * (v[i + 1] - v[i]),
+            a[i] + t * (a[i + 1] - a[i]), 0, i)
 
 
 def project(window: TrajectoryWindow | PreparedWindow, px: float, py: float) -> Projection:
@@ -169,24 +291,7 @@ def project(window: TrajectoryWindow | PreparedWindow, px: float, py: float) -> 
         The Projection of the point (see its attributes).
     """
     w = window if isinstance(window, PreparedWindow) else PreparedWindow(window)
-    i, t = w.nearest_chord(px, py)
-    last = len(w.s) - 2
-    for end, at_end in ((0, i == 0 and t == 0.0), (-1, i == last and t == 1.0)):
-        beyond = _extrapolate(w, end, px, py) if at_end else None
-        if beyond is not None:
-            return beyond
-    seg = w.segment(i)
-    t = _refine(seg, t, px, py)
-    (x, y), (dx, dy) = _hermite(seg, t, order=1)
-    norm = max(math.hypot(dx, dy), 1e-300)
-
-    def lerp(values: list[float]) -> float:
-        return values[i] + t * (values[i + 1] - values[i])
-
-    return Projection(s=lerp(w.s), x=x, y=y, offset=(dx * (py - y) - dy * (px - x)) / norm,
-                      psi_path=lerp(w.psi), kappa=lerp(w.kappa),
-                      dkappa_ds=(w.kappa[i + 1] - w.kappa[i]) / (w.s[i + 1] - w.s[i]),
-                      v=lerp(w.v), a=lerp(w.a), extrapolated=0)
+    return Projection(*foot(w, px, py)[:10])
 
 
 def point_at(window: TrajectoryWindow | PreparedWindow, s: float) -> tuple[float, float]:
