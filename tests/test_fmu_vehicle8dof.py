@@ -119,7 +119,7 @@ def test_wheel_lift_never_creates_extra_grip(fmu_dir):
 
 def roll_gradient_analytic():
     """phi / ay = ms e / (k_roll - ms g e) with the default suspension, rad per m/s2."""
-    ms, h_cg, h_rc, k_roll = 1300.0, 0.55, 0.1, 88000.0
+    ms, h_cg, h_rc, k_roll = M - 200.0, 0.55, 0.1, 88000.0   # ms = m - m_unsprung
     e = (M * h_cg - (M - ms) * R_W) / ms - h_rc
     return ms * e / (k_roll - ms * G * e)
 
@@ -229,7 +229,7 @@ def run_with_log(fmu_dir, params):
 
 @pytest.mark.parametrize("params, words", [
     ({"m": -1.0}, ["parameter m = -1", "valid range"]),
-    ({"ms": 1600.0}, ["ms = 1600", "m = 1500"]),
+    ({"m_unsprung": 1600.0}, ["m_unsprung = 1600", "m = 1500"]),
     ({"k_roll": 1000.0}, ["k_roll = 1000"]),
     ({"h_cg": 0.12}, ["h_cg = 0.12", "roll centre"]),
 ])
@@ -237,3 +237,9 @@ def test_invalid_parameters_fail_with_a_logged_message(fmu_dir, params, words):
     text = "\n".join(run_with_log(fmu_dir, params))
     for word in words:
         assert word in text
+
+
+def test_mass_uncertainty_scales_the_sprung_body(fmu_dir):
+    """Scaling m by 0.7 (the paper's 30 % case) stays a valid vehicle: the body is m - m_unsprung."""
+    res = simulate(fmu_dir, 1.0, {"m": 0.7 * M}, {"delta": 0.02})
+    assert np.isfinite(res["r"]).all() and res["r"][-1] > 0.0

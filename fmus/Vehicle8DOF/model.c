@@ -57,10 +57,14 @@ typedef struct {
     double fx_sum, fy_sum, mz;
 } Forces;
 
+static double sprung_mass(const double *v)
+{
+    return v[VR_m] - v[VR_m_unsprung];
+}
+
 static double sprung_cg_height(const double *v)
 {
-    double m_u = v[VR_m] - v[VR_ms];
-    return (v[VR_m] * v[VR_h_cg] - m_u * v[VR_Rw]) / v[VR_ms];
+    return (v[VR_m] * v[VR_h_cg] - v[VR_m_unsprung] * v[VR_Rw]) / sprung_mass(v);
 }
 
 static void load_par(const double *v, Par *p)
@@ -69,7 +73,7 @@ static void load_par(const double *v, Par *p)
     p->cx = v[VR_cx]; p->lw = v[VR_lw];
     p->lf = v[VR_lf]; p->lr = v[VR_lr]; p->wb = p->lf + p->lr;
     p->tf = v[VR_track_f]; p->tr = v[VR_track_r];
-    p->ms = v[VR_ms]; p->ix_s = v[VR_Ix_s]; p->k_roll = v[VR_k_roll];
+    p->ms = sprung_mass(v); p->ix_s = v[VR_Ix_s]; p->k_roll = v[VR_k_roll];
     p->c_roll = v[VR_c_roll]; p->roll_split = v[VR_roll_split];
     p->h_cg = v[VR_h_cg]; p->h_rc = v[VR_h_rc];
     p->ms_e = p->ms * (sprung_cg_height(v) - p->h_rc);
@@ -304,21 +308,21 @@ static void write_outputs(const State *s, double *v)
 static ModelStatus validate(const double *v, const ModelLogger *log)
 {
     int bad = 0;
-    if (v[VR_ms] > v[VR_m]) {
-        model_logf(log, LOG_ERROR, "parameter ms = %g must not exceed m = %g "
-                   "(sprung mass is part of the vehicle mass)", v[VR_ms], v[VR_m]);
-        ++bad;
+    if (!(sprung_mass(v) > 0.0)) {
+        model_logf(log, LOG_ERROR, "parameter m_unsprung = %g must be less than m = %g "
+                   "(the unsprung mass is part of the vehicle mass)", v[VR_m_unsprung], v[VR_m]);
+        return MODEL_ERROR;
     }
     double hs = sprung_cg_height(v);
     if (!(hs > v[VR_h_rc])) {
         model_logf(log, LOG_ERROR, "parameters h_cg = %g, h_rc = %g, ms = %g: sprung-mass CG "
                    "height %g must be above the roll centre h_rc", v[VR_h_cg], v[VR_h_rc],
-                   v[VR_ms], hs);
+                   sprung_mass(v), hs);
         ++bad;
-    } else if (!(v[VR_k_roll] > v[VR_ms] * GRAVITY * (hs - v[VR_h_rc]))) {
+    } else if (!(v[VR_k_roll] > sprung_mass(v) * GRAVITY * (hs - v[VR_h_rc]))) {
         model_logf(log, LOG_ERROR, "parameter k_roll = %g must exceed ms g (hs - h_rc) = %g, "
                    "otherwise the body rolls over under its own weight", v[VR_k_roll],
-                   v[VR_ms] * GRAVITY * (hs - v[VR_h_rc]));
+                   sprung_mass(v) * GRAVITY * (hs - v[VR_h_rc]));
         ++bad;
     }
     return bad ? MODEL_ERROR : MODEL_OK;
