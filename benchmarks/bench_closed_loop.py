@@ -1,0 +1,198 @@
+"""Cost per tick of the in-process closed loop: Vehicle8DOF FMU, controller, planner, master.
+
+Writes a scenario (two-lane road with a 150 m bend, 10 ms tick, the planner at
+10 Hz, lane keeping or lane change), then runs it through the real master
+(`cosim.master.Master` over `FmuComponent` and `InprocComponent` hosts, the
+hosts `cosim run --transport inproc` uses, no recorder) for N simulated
+seconds, in alternating repetitions of two kinds:
+
+- timed: each host's `step` wrapped with a timer; gives the time per tick of
+  the FMU step, the controller, the planner (amortized: its time over all
+  ticks) and the master overhead (the run's tick-loop time minus the
+  components'), all from one run;
+- untimed: the master loop as is; its time per tick gives the real-time
+  factor (tick / time per tick), which DESIGN.md wants at least 500.
+
+The timers' own costs (measured on an empty step just before the run) are
+taken off. The timed run with the smallest total and the fastest untimed run
+are reported (least disturbed by other jobs on a shared machine).
+
+Run: .venv/bin/python benchmarks/bench_closed_loop.py [--seconds 20] [--repeats 5]
+     [--controller backstepping|feedforward|stanley|pure_pursuit] [--manoeuvre lane_keeping|lane_change]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from cosim.fmu_component import FmuComponent  # noqa: E402
+from cosim.inproc import InprocComponent  # noqa: E402
+from cosim.master import Master  # noqa: E402
+from cosim.run import prepare_run  # noqa: E402
+from cosim.scenario import load_scenario  # noqa: E402
+from cosim.wiring import resolve_wiring  # noqa: E402
+
+TARGET_RTF = 500.0
+CONTROLLERS = {
+    "backstepping": ("controllers.backstepping:BacksteppingController",
+                     {"adaptive": True, "lateral_law": "faithful", "mu0": 0.8}),
+    "feedforward": ("controllers.backstepping:BacksteppingController",
+                    {"adaptive": True, "lateral_law": "feedforward", "mu0": 0.8}),
+    "stanley": ("controllers.baselines:StanleyController", {}),
+    "pure_pursuit": ("controllers.baselines:PurePursuitController", {}),
+}
+MANOEUVRES = {
+    "lane_keeping": {"type": "lane_keeping"},
+    "lane_change": {"type": "lane_change", "at": 80.0, "to_lane": 1, "a_lat": 1.5, "j_lat": 2.0},
+}
+
+
+def write_scenario(folder: Path, seconds: float, controller: str, manoeuvre: str) -> Path:
+    """The benchmark's scenario YAML in `folder`; returns its path.
+
+    Args:
+        folder: where to write it; seconds: duration;
+        controller: a CONTROLLERS key; manoeuvre: a MANOEUVRES key.
+    """
+    python, parameters = CONTROLLERS[controller]
+    scenario = {
+        "name": f"bench_closed_loop_{controller}_{manoeuvre}",
+        "duration": seconds, "tick": 0.01,
+        "components": {
+            "vehicle": {"fmu": "Vehicle8DOF", "parameters": {"vx0": 10.0, "cx": 0.42}},
+            "controller": {"python": python, "period": 0.01, "parameters": parameters},
+            "planner": {"python": "controllers.planner:Planner", "period": 0.1, "parameters": {
+                "road": {"builder": "two_lane", "length": 100.0 + 12.0 * seconds, "radius": 150.0},
+                "lane": 0, "manoeuvre": MANOEUVRES[manoeuvre],
+                "speed": {"v_max": 12.0, "a_lat_max": 2.0, "a_max": 1.0, "d_max": 1.5, "j_max": 1.0}}},
+        },
+        "connections": ["vehicle -> controller", "vehicle -> planner", "planner -> controller",
+                        "controller.delta -> vehicle.delta", "controller.torque -> vehicle.torque"],
+    }
+    path = folder / "bench_closed_loop.yaml"
+    path.write_text(yaml.safe_dump(scenario, sort_keys=False))
+    return path
+
+
+class StepTimer:
+    """Wraps a host's `step` and adds up the time spent inside it."""
+
+    def __init__(self, hosted) -> None:
+        self.inner = hosted.step
+        self.seconds = 0.0
+        self.calls = 0
+        hosted.step = self.step
+
+    def step(self, tick, t, inputs):
+        """The wrapped step, timed."""
+        start = time.perf_counter()
+        outputs = self.inner(tick, t, inputs)
+        self.seconds += time.perf_counter() - start
+        self.calls += 1
+        return outputs
+
+
+def timer_cost(calls: int = 20000) -> tuple[float, float]:
+    """(time a StepTimer reports, time it adds to the caller's wall clock), per call of an empty step."""
+    class Empty:
+        def step(self, tick, t, inputs):
+            return inputs
+
+    empty = Empty()
+    direct = empty.step
+    start = time.perf_counter()
+    for k in range(calls):
+        direct(k, 0.0, None)
+    bare = time.perf_counter() - start
+    timer = StepTimer(empty)
+    start = time.perf_counter()
+    for k in range(calls):
+        timer.step(k, 0.0, None)
+    wrapped = time.perf_counter() - start
+    return timer.seconds / calls, max(wrapped - bare, 0.0) / calls
+
+
+def build_hosts(prepared) -> dict:
+    """The run's hosts in declaration order: the FMU and the Python components, all in-process."""
+    hosted = {plan.name: FmuComponent(plan.name, plan.path, plan.interface, plan.parameters,
+                                      plan.period_ticks) for plan in prepared.fmus}
+    hosted.update({launch.name: InprocComponent(launch) for launch in prepared.launches})
+    return {name: hosted[name] for name in prepared.names}
+
+
+def build_master(prepared, hosted: dict) -> Master:
+    """The master over the hosts, wired as the scenario says, without observers."""
+    scenario = prepared.scenario
+    unsupported = {n: c.interface.unsupported for n, c in hosted.items() if isinstance(c, FmuComponent)}
+    edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()}, unsupported)
+    return Master(hosted, edges, scenario.tick, scenario.total_ticks, scenario.start_time)
+
+
+def run_once(prepared, timed: bool) -> tuple[float, dict[str, tuple[float, int]]]:
+    """One run: wall seconds of the tick loop and, if timed, (seconds, calls) inside each host's step."""
+    hosted = build_hosts(prepared)
+    timers = {name: StepTimer(comp) for name, comp in hosted.items()} if timed else {}
+    master = build_master(prepared, hosted)
+    try:
+        master.initialize()
+        start = time.perf_counter()
+        for k in range(1, master.total_ticks + 1):
+            master.step_tick(k)
+        wall = time.perf_counter() - start
+    finally:
+        master.stop_all()
+    return wall, {name: (timer.seconds, timer.calls) for name, timer in timers.items()}
+
+
+def timed_figures(prepared, ticks: int) -> dict[str, float]:
+    """One timed run as us per tick: each component, `master overhead` and `total`, timer costs taken off."""
+    inner_bias, outer_cost = timer_cost()
+    wall, parts = run_once(prepared, timed=True)
+    calls = sum(c for _, c in parts.values())
+    figures = {name: max(seconds - c * inner_bias, 0.0) / ticks * 1e6 for name, (seconds, c) in parts.items()}
+    total = (wall - calls * outer_cost) / ticks * 1e6
+    figures["master overhead"] = total - sum(figures.values())
+    figures["total"] = total
+    return figures
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=20.0, help="simulated seconds per run")
+    parser.add_argument("--repeats", type=int, default=5, help="runs of each kind (the best is kept)")
+    parser.add_argument("--controller", choices=sorted(CONTROLLERS), default="backstepping")
+    parser.add_argument("--manoeuvre", choices=sorted(MANOEUVRES), default="lane_keeping")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        prepared = prepare_run(load_scenario(write_scenario(Path(tmp), args.seconds, args.controller,
+                                                            args.manoeuvre)))
+        ticks, tick = prepared.scenario.total_ticks, prepared.scenario.tick
+        plain, timed = [], []
+        for _ in range(args.repeats):
+            plain.append(run_once(prepared, timed=False)[0] / ticks * 1e6)
+            timed.append(timed_figures(prepared, ticks))
+    best = min(timed, key=lambda figures: figures["total"])
+    labels = {"vehicle": "FMU step (vehicle)", "controller": "controller (every tick)",
+              "planner": "planner (amortized, 1 in 10 ticks)"}
+    print(f"{args.controller} + planner ({args.manoeuvre}) + Vehicle8DOF, {ticks} ticks of "
+          f"{tick * 1e3:g} ms, best of {args.repeats} timed runs (timer costs taken off)")
+    print(f"{'part':<36}{'us/tick':>10}{'share':>8}")
+    for name, value in best.items():
+        share = f"{100 * value / best['total']:>7.0f}%" if name != "total" else ""
+        print(f"{labels.get(name, name):<36}{value:>10.2f}{share}")
+    total = min(plain)
+    rtf = tick * 1e6 / total
+    print(f"untimed runs: {total:.2f} us/tick, real-time factor {rtf:.0f}x; target {TARGET_RTF:.0f}x; "
+          f"ratio {rtf / TARGET_RTF:.3f}")
+
+
+if __name__ == "__main__":
+    main()
