@@ -18,6 +18,8 @@ own YAML file (`--deploy FILE`), never in the scenario:
       subjects: [...]
       policies: [...]
     discovery_timeout_s: 3.0             # how long the master looks for its workers
+    lease_s: 2.0                         # a silent link (cut cable) is dropped after this
+    open_timeout_s: 1.0                  # longest attempt to open a link (bounds close too)
 
 `zenoh_config` turns settings plus a mode and endpoints into a `zenoh.Config`;
 every session of the distributed platform (master, worker, component
@@ -59,6 +61,8 @@ class DeploySettings(BaseModel):
     tls: Optional[TlsSettings] = None
     access_control: Optional[dict[str, Any]] = None
     discovery_timeout_s: float = Field(3.0, gt=0)
+    lease_s: float = Field(2.0, ge=0.5)
+    open_timeout_s: float = Field(1.0, gt=0)
 
     @field_validator("listen", "connect")
     @classmethod
@@ -159,13 +163,18 @@ def zenoh_settings(settings: DeploySettings | None, mode: str, listen: list[str]
         "connect": {"endpoints": list(connect)},
         "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": False}},
     }
+    timing = settings or DeploySettings()
+    link: dict[str, Any] = {"tx": {"lease": int(timing.lease_s * 1000)}}
+    # a session waits for a pending connect attempt when it closes: keep attempts short
+    document["transport"] = {"link": link,
+                             "unicast": {"open_timeout": int(timing.open_timeout_s * 1000)}}
     if settings is not None and settings.tls is not None:
         tls = settings.tls
-        document["transport"] = {"link": {"tls": {
+        link["tls"] = {
             "root_ca_certificate": tls.root_ca_certificate,
             "listen_certificate": tls.certificate, "listen_private_key": tls.private_key,
             "connect_certificate": tls.certificate, "connect_private_key": tls.private_key,
-            "enable_mtls": tls.mutual, "verify_name_on_connect": tls.verify_name}}}
+            "enable_mtls": tls.mutual, "verify_name_on_connect": tls.verify_name}
     if settings is not None and settings.access_control is not None:
         document["access_control"] = settings.access_control
     return document

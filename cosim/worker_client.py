@@ -35,6 +35,8 @@ from cosim.zenoh_transport.processes import ChildProcess
 QUERY_TIMEOUT_S = 0.3
 START_TIMEOUT_S = 5.0
 STOP_TIMEOUT_S = 1.8
+SETTLE_PROBE_S = 0.2
+SETTLE_POLL_S = 0.05
 
 
 def query_workers(session: Any, timeout_s: float,
@@ -114,7 +116,7 @@ class _RemotePopen:
         return self._child.exit_code()
 
     def terminate(self) -> None:
-        if self._stop_reply is None:
+        if self._stop_reply is None and not self._child.hosted.worker_gone(self._child.worker):
             request = {"op": "stop", "run_id": self._child.run_id, "component": self._child.name}
             self._stop_reply = self._child.hosted.session.get(
                 proto.worker_key(self._child.worker), payload=proto.encode(request),
@@ -181,10 +183,11 @@ class WorkerChild:
         notice = self.hosted.exit_notice(self.name)
         if notice is not None:
             return f"{notice.get('cause')} ({self.where})"
-        worker_state = ("the worker vanished too" if self.hosted.worker_gone(self.worker)
-                        else "the worker is still up")
+        if self.hosted.worker_gone(self.worker):
+            return (f"{self.where} became unreachable (host down, frozen or cut off): the "
+                    f"liveliness tokens of the component process and of the worker were lost")
         return (f"process vanished from the network (liveliness token lost) on "
-                f"{self.where}; {worker_state}")
+                f"{self.where}; the worker is still up")
 
     def log_tail(self) -> str:
         """The last output, as sent in the worker's exit notice."""
@@ -243,6 +246,14 @@ class DistributedComponents(ZenohComponents):
         return {c: f"{w}@{self.workers.get(w, {}).get('host', '?')}"
                 for c, w in self.placement.items()}
 
+    def close(self) -> None:
+        """End the run's processes and the session, even when a peer was cut off."""
+        try:
+            super().close()
+        except zenoh.ZError:
+            # a peer behind a cut link cannot acknowledge the close: the session is gone anyway
+            self.session = None
+
     def _session_config(self, endpoint: str) -> zenoh.Config:
         listen = [endpoint, *self.settings.listen[1:]]
         return zenoh_config(self.settings, "peer", listen, self.settings.connect)
@@ -300,10 +311,27 @@ class DistributedComponents(ZenohComponents):
 
     def _fail(self, failure: ComponentFailure) -> ComponentFailure:
         child = self._children.get(failure.component)
-        if isinstance(child, WorkerChild) and child.where not in failure.cause:
-            failure = ComponentFailure(failure.component, failure.tick, failure.time,
-                                       f"{failure.cause} [{child.where}]")
+        if isinstance(child, WorkerChild):
+            if child.where not in failure.cause:
+                failure = ComponentFailure(failure.component, failure.tick, failure.time,
+                                           f"{failure.cause}; it ran on {child.where}")
+            if self.exit_notice(child.name) is None:
+                self._settle(child.worker)
         return super()._fail(failure)
+
+    def _settle(self, worker: str) -> None:
+        """Wait until `worker` either answers or has lost its link (lease expired).
+
+        A session whose link to a silent peer is still open blocks other traffic
+        and its own close for seconds (measured: close times out after 10 s), so
+        after a worker went silent the run waits for Zenoh to drop that link
+        before stopping the other components.
+        """
+        end = time.monotonic() + self.settings.lease_s + 1.0
+        while time.monotonic() < end and not self.worker_gone(worker):
+            if ask_worker(self.session, worker, {"op": "info"}, SETTLE_PROBE_S) is not None:
+                return
+            time.sleep(SETTLE_POLL_S)
 
 
 def master_endpoint(endpoint: str) -> str:

@@ -225,7 +225,7 @@ def test_process_dying_on_worker_is_reported_and_worker_serves_next_run(worker):
         remote = hosted.components["mix"]
         remote.start(0.0, {"u": 1.0, "w": np.zeros(3)})
         with pytest.raises(ComponentFailure, match=r"'mix' failed at tick 5 .*ZeroDivisionError"
-                                                   r".*\[worker 'w1' on host"):
+                                                   r".*; it ran on worker 'w1' on host"):
             for k in range(1, 10):
                 remote.step(k, k * 0.01, {"u": 1.0, "w": np.zeros(3)})
     spec = launch("echo", "Echo")

@@ -1,0 +1,303 @@
+"""Runs over three "hosts" made of Linux network namespaces joined by a bridge:
+the master in one, worker "wa" in a second, worker "wb" in a third, every
+process started with `ip netns exec`. The recorded signals must be bit-identical
+to the same scenario run in-process; a cut link, a killed worker host and a
+frozen one each end the run with a message naming the worker, the component and
+the tick, and the surviving worker serves the next run; two runs at once do not
+mix; the same run works over TLS. Skipped only where namespaces cannot be made.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from cosim.cli import main
+from cosim.recorder import read_signals
+from tests import netns
+
+pytestmark = [pytest.mark.integration,
+              pytest.mark.skipif(netns.unavailable() is not None,
+                                 reason=f"network namespaces: {netns.unavailable()}")]
+
+ROOT = Path(__file__).resolve().parent.parent
+PORT = 7447
+DEADLINE_S = 2.0
+SCENARIO = """\
+name: distributed
+duration: {duration}
+tick: 0.01
+components:
+  mixer:
+    python: tests.zenoh_components:Mixer
+    parameters: {{gain: 1.5}}
+    host: wa
+  echo:
+    python: tests.zenoh_components:Echo
+sources:
+  ramp: {{kind: ramp, start: 0.0, end: 2.0, t_start: 0.0, t_end: 1.0}}
+connections:
+  - {{from: ramp.value, to: mixer.u}}
+  - {{from: mixer.y, to: echo.u}}
+"""
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": str(ROOT)}
+
+
+class Host:
+    """A worker process inside a namespace (its own process group: the "host")."""
+
+    def __init__(self, lab: netns.NetLab, host: str, name: str, *extra: str) -> None:
+        self.name = name
+        argv = [sys.executable, "-m", "cosim.cli", "worker", "--name", name,
+                "--allow", "tests.zenoh_components", "--allow", "cosim.sources", *extra]
+        self.proc = subprocess.Popen(lab.exec(host, argv), cwd=ROOT, env=_env(),
+                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                     start_new_session=True, text=True)
+        wait_for_line(self.proc, f"worker '{name}' ready", 30)
+
+    def signal(self, sig: int) -> None:
+        """Send `sig` to the worker and every component process it started."""
+        os.killpg(self.proc.pid, sig)
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.signal(signal.SIGCONT)
+            self.proc.terminate()
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.signal(signal.SIGKILL)
+                self.proc.wait()
+        self.proc.stdout.close()
+
+
+def wait_for_line(proc: subprocess.Popen, text: str, timeout_s: float) -> None:
+    """Read `proc`'s output until a line contains `text`; fail on timeout or exit."""
+    end = time.monotonic() + timeout_s
+    seen = []
+    while time.monotonic() < end:
+        ready, _, _ = select.select([proc.stdout], [], [], 0.2)
+        if ready:
+            line = proc.stdout.readline()
+            if not line and proc.poll() is not None:
+                break
+            seen.append(line)
+            if text in line:
+                return
+    raise AssertionError(f"no line {text!r} within {timeout_s} s; output: {''.join(seen)}")
+
+
+@pytest.fixture(scope="module")
+def lab():
+    with netns.NetLab(["a", "b"]) as made:
+        yield made
+
+
+@pytest.fixture
+def hosts(lab):
+    started = []
+    try:
+        started.append(Host(lab, "a", "wa", "--listen", f"tcp/{lab.address('a')}:{PORT}"))
+        started.append(Host(lab, "b", "wb", "--listen", f"tcp/{lab.address('b')}:{PORT}"))
+        yield {h.name: h for h in started}
+    finally:
+        for host in started:
+            host.close()
+
+
+def master_argv(lab: netns.NetLab, scenario: Path, out: Path, *extra: str) -> list[str]:
+    argv = [sys.executable, "-m", "cosim.cli", "run", str(scenario), "--out", str(out),
+            "--no-figures", "--deadline", str(DEADLINE_S),
+            "--listen", f"tcp/{lab.address('master')}:0",
+            "--connect", f"tcp/{lab.address('a')}:{PORT}",
+            "--connect", f"tcp/{lab.address('b')}:{PORT}", *extra]
+    return lab.exec("master", argv)
+
+
+def start_master(lab, scenario, out, *extra) -> subprocess.Popen:
+    return subprocess.Popen(master_argv(lab, scenario, out, *extra), cwd=ROOT, env=_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def finish(proc: subprocess.Popen, timeout_s: float = 60) -> tuple[int, str]:
+    """Exit code and stderr of a master process, which must end within `timeout_s`."""
+    _, err = proc.communicate(timeout=timeout_s)
+    return proc.returncode, err
+
+
+def write_scenario(folder: Path, duration: float = 0.5) -> Path:
+    path = folder / "distributed.yaml"
+    path.write_text(SCENARIO.format(duration=duration))
+    return path
+
+
+def local_run(scenario: Path, out: Path, *extra: str) -> bytes:
+    assert main(["run", str(scenario), "--out", str(out), "--transport", "inproc",
+                 "--place", "mixer=local", "--no-figures", *extra]) == 0
+    return (out / "signals.csv").read_bytes()
+
+
+def wait_for_ticks(signals: Path, rows: int, timeout_s: float = 30) -> None:
+    """Wait until the recorder has flushed at least `rows` ticks (the run is under way)."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if signals.exists() and len(signals.read_text().splitlines()) > rows:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"{signals} did not reach {rows} rows within {timeout_s} s")
+
+
+# ------------------------------------------------------------------ tests
+def test_three_hosts_bit_identical_to_local_run(lab, hosts, tmp_path):
+    scenario = write_scenario(tmp_path)
+    expected = local_run(scenario, tmp_path / "local")
+    code, err = finish(start_master(lab, scenario, tmp_path / "remote", "--place", "echo=wb"))
+    assert code == 0, err
+    assert (tmp_path / "remote" / "signals.csv").read_bytes() == expected
+    manifest = json.loads((tmp_path / "remote" / "manifest.json").read_text())
+    assert manifest["hosts"]["mixer"].startswith("wa@") and manifest["hosts"]["echo"].startswith("wb@")
+    listing = subprocess.run(lab.exec("master", [
+        sys.executable, "-m", "cosim.cli", "workers", "--timeout", "1",
+        "--connect", f"tcp/{lab.address('a')}:{PORT}", "--connect", f"tcp/{lab.address('b')}:{PORT}"]),
+        cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=60)
+    assert listing.returncode == 0 and "2 worker(s)" in listing.stdout
+    assert "wa" in listing.stdout and "wb" in listing.stdout
+
+
+def test_missing_worker_fails_before_tick_0(lab, hosts, tmp_path):
+    scenario = write_scenario(tmp_path)
+    code, err = finish(start_master(lab, scenario, tmp_path / "r", "--place", "echo=wc"))
+    assert code == 2
+    assert "worker(s) 'wc' not reachable" in err and "placed: echo on 'wc'" in err
+    assert "reachable workers: wa (host" in err and "wb (host" in err
+    assert not (tmp_path / "r" / "signals.csv").exists()
+
+
+def _fault_run(lab, tmp_path, fault, place_echo: str = "wb") -> tuple[str, Path]:
+    """Start a slow (real-time paced) run, apply `fault` once ticks are recorded, and
+    return the master's stderr once it has ended with status 1."""
+    scenario = write_scenario(tmp_path, duration=60.0)
+    out = tmp_path / "faulty"
+    proc = start_master(lab, scenario, out, "--place", f"echo={place_echo}", "--realtime", "1")
+    try:
+        t0 = time.monotonic()
+        wait_for_ticks(out / "signals.csv", 20)
+        t1 = time.monotonic()
+        fault()
+        code, err = finish(proc, timeout_s=DEADLINE_S + 20)
+        print(f"started after {t1 - t0:.1f} s, ended {time.monotonic() - t1:.1f} s after the fault")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    print(err)  # shown when an assertion below fails
+    assert code == 1, err
+    return err, out
+
+
+def assert_unreachable(err: str) -> None:
+    """A silent worker is noticed by the per-exchange deadline or by the lease
+    (both 2 s here), whichever fires first; both messages say what happened."""
+    assert f"no reply within the deadline of {DEADLINE_S:g} s" in err or \
+        ("worker 'wb' on host" in err and "became unreachable (host down" in err)
+
+
+def _check_partial(out: Path, err: str) -> int:
+    """The failed run's signals are readable up to its last complete tick; returns it."""
+    manifest = json.loads((out / "manifest.json").read_text())
+    _, data = read_signals(out / "signals.csv")
+    assert manifest["status"] == "failed" and data.shape[0] >= 20
+    return data.shape[0]
+
+
+def _next_run_on(lab, tmp_path, worker: str) -> None:
+    scenario = write_scenario(tmp_path)
+    expected = local_run(scenario, tmp_path / "next-local")
+    code, err = finish(start_master(lab, scenario, tmp_path / "next", "--place", f"mixer={worker}",
+                                    "--place", f"echo={worker}"))
+    assert code == 0, err
+    assert (tmp_path / "next" / "signals.csv").read_bytes() == expected
+
+
+def test_link_cut_mid_run_names_worker_component_and_tick(lab, hosts, tmp_path):
+    try:
+        err, out = _fault_run(lab, tmp_path, lambda: lab.link_down("b"))
+    finally:
+        lab.link_up("b")
+    assert "component 'echo' failed at tick" in err and "worker 'wb'" in err
+    assert_unreachable(err)
+    _check_partial(out, err)
+    _next_run_on(lab, tmp_path, "wa")
+
+
+def test_killed_worker_host_mid_run(lab, hosts, tmp_path):
+    err, out = _fault_run(lab, tmp_path, lambda: hosts["wa"].signal(signal.SIGKILL))
+    assert "component 'mixer' failed at tick" in err
+    assert "worker 'wa' on host" in err and "became unreachable (host down" in err
+    _check_partial(out, err)
+    _next_run_on(lab, tmp_path, "wb")
+
+
+def test_frozen_worker_host_mid_run(lab, hosts, tmp_path):
+    err, out = _fault_run(lab, tmp_path, lambda: hosts["wb"].signal(signal.SIGSTOP))
+    hosts["wb"].signal(signal.SIGCONT)
+    assert "component 'echo' failed at tick" in err and "worker 'wb'" in err
+    assert_unreachable(err)
+    _check_partial(out, err)
+    _next_run_on(lab, tmp_path, "wa")
+
+
+def test_two_concurrent_runs_do_not_mix(lab, hosts, tmp_path):
+    scenario = write_scenario(tmp_path, duration=1.0)
+    gains = {"one": "0.5", "two": "-3.0"}
+    expected = {k: local_run(scenario, tmp_path / f"local-{k}", "--set",
+                             f"components.mixer.parameters.gain={g}") for k, g in gains.items()}
+    assert expected["one"] != expected["two"]
+    procs = {k: start_master(lab, scenario, tmp_path / k, "--place", "echo=wb", "--set",
+                             f"components.mixer.parameters.gain={g}") for k, g in gains.items()}
+    for name, proc in procs.items():
+        code, err = finish(proc)
+        assert code == 0, err
+        assert (tmp_path / name / "signals.csv").read_bytes() == expected[name]
+
+
+def test_tls_run_across_hosts(lab, tmp_path):
+    certs = tmp_path / "certs"
+    addresses = [lab.address(h) for h in ("master", "a", "b")]
+    subprocess.run(["sh", str(ROOT / "examples" / "tls" / "make_certs.sh"), str(certs),
+                    "node", *addresses], check=True, capture_output=True)
+    tls = ("tls:\n  root_ca_certificate: certs/ca.pem\n  certificate: certs/node.pem\n"
+           "  private_key: certs/node-key.pem\n")
+    for host in ("a", "b"):
+        (tmp_path / f"deploy-{host}.yaml").write_text(
+            f"listen: [tls/{lab.address(host)}:{PORT + 1}]\n" + tls)
+    (tmp_path / "deploy-master.yaml").write_text(
+        f"listen: [tls/{lab.address('master')}:0]\n"
+        f"connect: [tls/{lab.address('a')}:{PORT + 1}, tls/{lab.address('b')}:{PORT + 1}]\n" + tls)
+    workers = []
+    try:
+        for host, name in (("a", "wa"), ("b", "wb")):
+            workers.append(Host(lab, host, name, "--deploy", str(tmp_path / f"deploy-{host}.yaml")))
+        scenario = write_scenario(tmp_path)
+        expected = local_run(scenario, tmp_path / "local")
+        argv = lab.exec("master", [sys.executable, "-m", "cosim.cli", "run", str(scenario),
+                                   "--out", str(tmp_path / "tls"), "--no-figures", "--place",
+                                   "echo=wb", "--deploy", str(tmp_path / "deploy-master.yaml")])
+        done = subprocess.run(argv, cwd=ROOT, env=_env(), capture_output=True, text=True,
+                              timeout=60)
+        assert done.returncode == 0, done.stderr
+        assert (tmp_path / "tls" / "signals.csv").read_bytes() == expected
+    finally:
+        for worker in workers:
+            worker.close()
