@@ -43,7 +43,7 @@ from controllers.manoeuvres import (LateralPlan, ManoeuvrePlan, Option, Transiti
                                    transition_length)
 from controllers.road import Road, frenet_from_base, road_from_spec
 from controllers.speed_profile import SpeedLimits, plan_speed
-from controllers.trajectory import WINDOW_POINTS, TrajectoryWindow, window_ports
+from controllers.trajectory import FIELDS, WINDOW_POINTS, window_ports
 
 ROUTE_DS = 0.25        # m, reference grid the route is laid out on (window points are grid points)
 PROFILE_DS = 0.5       # m, arc-length grid of the speed profiles
@@ -108,10 +108,17 @@ class RoutePlan:
             at = profile.s[going[-1]] if going.size else sig0
             self.brake_from = float(np.interp(at, self.sigma, grid.s))
 
-    def window(self, idx: np.ndarray, psi_shift: float) -> TrajectoryWindow:
-        """The window made of the grid points idx, headings shifted by psi_shift (2 pi k)."""
-        return TrajectoryWindow(x=self.x[idx], y=self.y[idx], psi=self.psi[idx] + psi_shift, kappa=self.kappa[idx],
-                                s=self.sigma[idx] - self.sigma[idx[0]], v=self.v[idx], a=self.a[idx])
+    def window(self, idx: slice, psi_shift: float, prefix: str) -> dict[str, np.ndarray]:
+        """Port values `<prefix>_<field>` of the window made of the grid points idx (a slice),
+        headings shifted by psi_shift (2 pi k). Arrays may be views: the hosts copy them."""
+        sigma = self.sigma[idx]
+        return window_signals(prefix, self.x[idx], self.y[idx], self.psi[idx] + psi_shift, self.kappa[idx],
+                              sigma - sigma[0], self.v[idx], self.a[idx])
+
+
+def window_signals(prefix: str, *fields: np.ndarray) -> dict[str, np.ndarray]:
+    """The port values of one window from its fields in controllers.trajectory.FIELDS order."""
+    return {f"{prefix}_{name}": value for (name, _, _), value in zip(FIELDS, fields)}
 
 
 class Planner(Component):
@@ -179,6 +186,7 @@ class Planner(Component):
         except SpecError as exc:
             raise ComponentError(f"parameter {exc}") from None
         self.progress = self.offset = 0.0
+        self.road_limit = float(max(np.abs(self.road.edges()))) + self.off_road
         self.ref_route: RoutePlan | None = None
         self.alt_route: RoutePlan | None = None
 
@@ -225,7 +233,7 @@ class Planner(Component):
             raise ComponentError("step called before initialize")
         x, y, psi, vx = self._read(t, inputs)
         proj = self.road.reference.project(x, y, s_guess=float(self.road.reference.wrap(self.progress)))
-        if proj.distance > max(np.abs(self.road.edges())) + self.off_road:
+        if proj.distance > self.road_limit:
             proj = self.road.reference.project(x, y)      # a jump: search the whole road again
         if self.road.closed:
             length = self.road.length
@@ -253,39 +261,39 @@ class Planner(Component):
 
     def _check_on_road(self, t: float, x: float, y: float, distance: float) -> None:
         """Stop with a clear message when the vehicle is far off the road (or past its end)."""
-        limit = max(np.abs(self.road.edges())) + self.off_road
+        limit = self.road_limit
         if distance > limit:
             raise ComponentError(f"at t = {t}: vehicle at ({x:.2f}, {y:.2f}) is {distance:.2f} m from the "
                                  f"road's reference line (more than {limit:.2f} m): it has left the road")
 
-    def _indices(self, t: float) -> np.ndarray:
-        """Grid indices of the window points at the current progress."""
+    def _indices(self, t: float) -> slice:
+        """Grid indices of the window points at the current progress (a slice)."""
         first = self.grid.index(self.progress - self.back)
-        idx = first + self.step_pts * np.arange(WINDOW_POINTS)
-        if first < 0 or idx[-1] >= self.grid.s.size:
+        last = first + self.step_pts * (WINDOW_POINTS - 1)
+        if first < 0 or last >= self.grid.s.size:
             raise ComponentError(f"at t = {t}: vehicle at s = {self.progress:.2f} m has left the planned "
                                  f"route [{self.grid.s[0]:.2f}, {self.grid.s[-1]:.2f}] m")
-        return idx
+        return slice(first, last + 1, self.step_pts)
 
-    def _dynamic_alt(self, idx: np.ndarray, vx: float, psi_shift: float) -> TrajectoryWindow:
+    def _dynamic_alt(self, idx: slice, vx: float, psi_shift: float) -> dict[str, np.ndarray]:
         """Window of the lane change to plan.alt_lane starting at the vehicle's progress."""
         d_now = float(np.interp(self.progress, self.grid.s, self.ref_route.d))
         d_to = self.road.lane_offset(self.plan.alt_lane)
         speed = min(max(vx, 3.0), self.limits.v_max)
         length = transition_length(d_to - d_now, speed, self.plan.comfort)
         lateral = LateralPlan(d_now, (Transition(self.progress, length, d_now, d_to),))
-        x, y, psi, kappa, sigma = self.grid.trajectory(lateral, slice(idx[0], idx[-1] + 1))
-        sub = idx - idx[0]
-        return TrajectoryWindow(x=x[sub], y=y[sub], psi=psi[sub] + psi_shift, kappa=kappa[sub], s=sigma[sub],
-                                v=self.ref_route.v[idx], a=self.ref_route.a[idx])
+        x, y, psi, kappa, sigma = self.grid.trajectory(lateral, slice(idx.start, idx.stop))
+        sub = slice(None, None, idx.step)
+        return window_signals("alt", x[sub], y[sub], psi[sub] + psi_shift, kappa[sub], sigma[sub],
+                              self.ref_route.v[idx], self.ref_route.a[idx])
 
     def _outputs(self, t: float, psi: float, vx: float) -> dict[str, Value]:
         """Both windows and the scalar outputs at the current progress."""
         idx = self._indices(t)
-        shift = 2 * np.pi * round((psi - self.ref_route.psi[idx[0]]) / (2 * np.pi))
-        ref = self.ref_route.window(idx, shift)
-        alt = self._dynamic_alt(idx, vx, shift) if self.alt_route is None else self.alt_route.window(idx, shift)
-        out: dict[str, Value] = {**ref.to_signals("ref"), **alt.to_signals("alt")}
+        shift = 2 * np.pi * round((psi - self.ref_route.psi[idx.start]) / (2 * np.pi))
+        out: dict[str, Value] = self.ref_route.window(idx, shift, "ref")
+        out.update(self._dynamic_alt(idx, vx, shift) if self.alt_route is None
+                   else self.alt_route.window(idx, shift, "alt"))
         out["s_vehicle"] = float(self.progress)
         out["lateral_offset"] = float(self.offset - np.interp(self.progress, self.grid.s, self.ref_route.d))
         out["v_ref"] = float(np.interp(self.progress, self.grid.s, self.ref_route.v))
@@ -303,6 +311,8 @@ class Planner(Component):
 
     def _obstacle_distance(self, d_vehicle: float) -> float:
         """Distance to the next obstacle in the vehicle's lane, capped at obstacle_range."""
+        if not self.plan.obstacles:
+            return self.range
         lane = self.road.lane_at(d_vehicle)
         ahead = [o.s - self.progress for o in self.plan.obstacles
                  if o.lane == lane and o.s + o.length > self.progress]
