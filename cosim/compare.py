@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from collections.abc import Sequence
 from pathlib import Path
 
 from cosim.figures import build_figure, save_png
 from cosim.metrics import METRIC_NAMES, analyse_run
-from cosim.metrics_rundata import AnalysisError, RunData, load_run
+from cosim.metrics_rundata import AnalysisError, RunData, load_run, read_json_object
 
 
 def run_labels(run_dirs: Sequence[Path]) -> list[str]:
@@ -39,16 +38,8 @@ def run_labels(run_dirs: Sequence[Path]) -> list[str]:
 
 def run_metrics(run: RunData) -> dict[str, float]:
     """The numeric entries of the run's metrics.json, updated with freshly computed metrics."""
-    merged: dict[str, float] = {}
-    path = run.run_dir / "metrics.json"
-    if path.is_file():
-        try:
-            stored = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise AnalysisError(f"{path}:{exc.lineno}: not valid JSON: {exc.msg}") from None
-        if isinstance(stored, dict):
-            merged = {k: v for k, v in stored.items()
-                      if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    stored = read_json_object(run.run_dir / "metrics.json")
+    merged = {k: v for k, v in stored.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
     merged.update(analyse_run(run).values)
     return merged
 

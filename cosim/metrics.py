@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from cosim.metrics_cones import cone_hits
-from cosim.metrics_rundata import AnalysisError, RunData, load_run
+from cosim.metrics_rundata import AnalysisError, RunData, load_run, read_json_object
 
 METRIC_NAMES = (
     "rms_yc", "max_abs_yc", "rms_yL", "max_abs_yL", "rms_psiL", "max_abs_psiL",
@@ -257,15 +257,7 @@ def write_metrics(run_dir: str | Path, skip_s: float | None = None) -> MetricsRe
     run_dir = Path(run_dir)
     report = analyse_run(load_run(run_dir), skip_s)
     path = run_dir / "metrics.json"
-    merged: dict = {}
-    if path.is_file():
-        try:
-            merged = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise AnalysisError(f"{path}:{exc.lineno}: not valid JSON: {exc.msg}") from None
-        if not isinstance(merged, dict):
-            raise AnalysisError(f"{path}: expected a JSON object at the top level")
-    merged = {k: v for k, v in merged.items() if k not in METRIC_NAMES}
+    merged = {k: v for k, v in read_json_object(path).items() if k not in METRIC_NAMES}
     merged.update(report.values)
     path.write_text(json.dumps(merged, indent=2) + "\n")
     notes_path = run_dir / NOTES_FILE

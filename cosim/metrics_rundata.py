@@ -192,17 +192,25 @@ class RunData:
         return short
 
 
-def _read_manifest(run_dir: Path) -> dict[str, Any]:
-    path = run_dir / "manifest.json"
+def read_json_object(path: Path) -> dict[str, Any]:
+    """Read a run folder's JSON file (manifest.json, metrics.json) holding one object.
+
+    Args:
+        path: the file; a missing file reads as {}.
+
+    Raises:
+        AnalysisError: the file is not valid JSON (naming the line) or not an object.
+    """
     if not path.is_file():
         return {}
     try:
-        manifest = json.loads(path.read_text())
+        document = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise AnalysisError(f"{path}:{exc.lineno}: not valid JSON: {exc.msg}") from None
-    if not isinstance(manifest, dict):
-        raise AnalysisError(f"{path}: expected a JSON object at the top level")
-    return manifest
+    if not isinstance(document, dict):
+        raise AnalysisError(f"{path}: expected a JSON object at the top level, "
+                            f"found {type(document).__name__}")
+    return document
 
 
 def load_run(run_dir: str | Path) -> RunData:
@@ -222,4 +230,4 @@ def load_run(run_dir: str | Path) -> RunData:
         raise AnalysisError(f"{run_dir}: not a run folder (signals.csv is missing)")
     header, data = read_csv_table(path)
     columns = {name: data[:, i] for i, name in enumerate(header) if i > 0}
-    return RunData(run_dir, data[:, 0], columns, _read_manifest(run_dir))
+    return RunData(run_dir, data[:, 0], columns, read_json_object(run_dir / "manifest.json"))

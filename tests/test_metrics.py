@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -13,6 +14,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 from analysis_synthetic import write_run  # noqa: E402
 
+from cosim.compare import run_metrics  # noqa: E402
 from cosim.metrics import compute_metrics, rms, write_metrics  # noqa: E402
 from cosim.metrics_cones import cone_hits, cones_inside  # noqa: E402
 from cosim.metrics_rundata import AnalysisError, load_run  # noqa: E402
@@ -146,6 +148,24 @@ def test_write_metrics_merges_and_is_deterministic(tmp_path):
     assert "max_abs_delta" not in data  # ours, and not computable any more
     write_metrics(run)
     assert (run / "metrics.json").read_bytes() == first
+
+
+@pytest.mark.parametrize("name", ["manifest.json", "metrics.json"])
+@pytest.mark.parametrize("text, message", [
+    ('{"a": 1,\n "b": }', r":2: not valid JSON: Expecting value"),
+    ("[1, 2]", r": expected a JSON object at the top level, found list"),
+])
+def test_bad_json_files_of_a_run_are_named_by_every_reader(tmp_path, name, text, message):
+    """load_run, write_metrics and compare's run_metrics share one reading rule."""
+    run = write_run(tmp_path / "r", T, {"controller.yc": 0.1 * T})
+    (run / name).write_text(text)
+    path = str(run / name)
+    readers = [lambda: run_metrics(load_run(run)), lambda: write_metrics(run)]
+    if name == "manifest.json":
+        readers.append(lambda: load_run(run))
+    for reader in readers:
+        with pytest.raises(AnalysisError, match="^" + re.escape(path) + message):
+            reader()
 
 
 def test_cone_inside_rotated_rectangle_exact_geometry():
