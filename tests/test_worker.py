@@ -298,3 +298,41 @@ def test_tls_worker_serves_only_peers_with_certificates_of_its_ca(certs):
             assert hosted.components["echo"].start(0.0, {"u": 1.0}) == {"y": 2.0}  # local, TLS too
     finally:
         agent.close()
+
+
+def test_example_deployment_files_tls_and_access_control(tmp_path):
+    """examples/distributed/*.yaml as shipped (addresses moved to 127.0.0.1): the
+    master and worker-a certificates pass the ACL and run a component; a
+    certificate of the same CA with an unlisted name sees nothing."""
+    import subprocess
+    for name in ("master", "worker-a", "intruder"):
+        subprocess.run(["sh", str(MAKE_CERTS), str(tmp_path / "certs"), name, "127.0.0.1"],
+                       check=True, capture_output=True)
+    port = free_tcp_endpoint().rsplit(":", 1)[1]
+    examples = ROOT / "examples" / "distributed"
+    for name in ("master", "worker-a"):
+        text = (examples / f"{name}.yaml").read_text()
+        text = text.replace("tls/10.0.0.2:7447", f"tls/127.0.0.1:{port}")
+        text = text.replace("tls/10.0.0.1:7447", "tls/127.0.0.1:0")
+        text = text.replace(", tls/10.0.0.3:7447", "")
+        (tmp_path / f"{name}.yaml").write_text(text)
+    worker_settings, master_settings = (load_deploy(tmp_path / f"{n}.yaml")
+                                        for n in ("worker-a", "master"))
+    assert worker_settings.access_control["default_permission"] == "deny"
+    agent = WorkerThread("wa", worker_settings)
+    try:
+        assert [w["name"] for w in list_workers(master_settings, 0.5)] == ["wa"]
+        intruder = master_settings.model_copy(update={"tls": master_settings.tls.model_copy(
+            update={"certificate": str(tmp_path / "certs" / "intruder.pem"),
+                    "private_key": str(tmp_path / "certs" / "intruder-key.pem")})})
+        assert list_workers(intruder, 0.5) == []
+        spec = launch("mix", "Mixer", gain=0.5)
+        local = InprocComponent(spec)
+        with DistributedComponents([spec], f"t-acl-{os.getpid()}", 5.0, placement={"mix": "wa"},
+                                   settings=master_settings) as hosted:
+            inputs = {"u": 2.0, "w": np.array([0.25, 0.5, -1.0])}
+            assert bits(hosted.components["mix"].start(0.0, inputs)) == \
+                bits(local.start(0.0, inputs))
+            assert hosted.components["mix"].stop() == local.stop()
+    finally:
+        agent.close()
