@@ -33,7 +33,7 @@ from controllers.vehicle_params import VehicleParams
 from controllers.window_projection import PreparedWindow, foot, point_at, wrap_angle
 
 OUTPUT_NAMES: tuple[str, ...] = tuple(port.name for port in COMMAND_OUTPUTS)
-HINT = 2      # the PreparedWindow hint slot of the steering law's own projection
+SLOT = 2      # the PreparedWindow tracking slot of the steering law's own projection point
 
 
 class _BaselineController(Component):
@@ -102,8 +102,7 @@ class PurePursuitController(_BaselineController):
         rear_x = x - self.params.lr * math.cos(psi)
         rear_y = y - self.params.lr * math.sin(psi)
         look_ahead = max(self.ld_min, self.ld_gain * vx)
-        at_rear = foot(window, rear_x, rear_y, window.hints[HINT])
-        window.hints[HINT] = at_rear[10]
+        at_rear = foot(window, rear_x, rear_y, SLOT)
         target_x, target_y = point_at(window, at_rear[0] + look_ahead)
         distance = math.hypot(target_x - rear_x, target_y - rear_y)
         bearing = wrap_angle(math.atan2(target_y - rear_y, target_x - rear_x) - psi)
@@ -135,8 +134,6 @@ class StanleyController(_BaselineController):
     def steer(self, plant: tuple[float, ...], window: PreparedWindow) -> float:
         """Stanley steering angle from the front axle's heading and cross-track errors."""
         x, y, psi, vx = plant[:4]
-        front = foot(window, x + self.params.lf * math.cos(psi), y + self.params.lf * math.sin(psi),
-                     window.hints[HINT])
-        window.hints[HINT] = front[10]
+        front = foot(window, x + self.params.lf * math.cos(psi), y + self.params.lf * math.sin(psi), SLOT)
         heading_error = wrap_angle(front[4] - psi)
         return heading_error + math.atan(-self.k_stanley * front[3] / (self.k_soft + vx))

@@ -118,18 +118,14 @@ def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,
     """Errors at the preview point and the reference speed at the CG's foot point.
 
     Args:
-        w: a PreparedWindow of a valid, non-empty window (its `hints` are updated).
+        w: a PreparedWindow of a valid, non-empty window (tracking slots 0 and 1).
         x, y, psi, vx: the measured CG position, yaw angle and speed.
         ls: preview distance [m].
     Returns:
         (yL, psiL, yc, rho, rho_dot, vx_ref, vx_ref_dot), see the module docstring.
     """
-    hints = w.hints
-    at_cg = foot(w, x, y, hints[0])
-    hints[0] = at_cg[10]
-    hint = hints[1] if hints[1] >= 0 else at_cg[10]
-    preview = foot(w, x + ls * math.cos(psi), y + ls * math.sin(psi), hint)
-    hints[1] = preview[10]
+    at_cg = foot(w, x, y, 0)
+    preview = foot(w, x + ls * math.cos(psi), y + ls * math.sin(psi), 1)
     psi_l = (psi - preview[4] + math.pi) % (2.0 * math.pi) - math.pi     # wrap_angle, inlined
     return preview[3], psi_l, at_cg[3], preview[5], preview[6] * vx, at_cg[7], at_cg[8]
 

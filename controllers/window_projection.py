@@ -121,7 +121,10 @@ class PreparedWindow:
         # slack of the skip test: covers rounding in reach, distances and squared distances
         self.slack = 1e-9 * (1.0 + reach[-1] + max(map(abs, x)) + max(map(abs, y)))
         self.chords = len(self.dx)
-        self.hints = [-1, -1, -1, -1]     # callers' last chord per query point (-1: none yet)
+        # tracked_chord's state per slot: certificate (x0, y0, R, lo, hi) and last answer (-1: none)
+        self.certs: list[tuple | None] = [None, None, None, None]
+        self.best = [-1, -1, -1, -1]
+        self.margin = 2.0 * reach[-1] / self.chords
 
     def chord_distance2(self, i: int, px: float, py: float) -> tuple[float, float]:
         """Squared distance from (px, py) to chord i and the clamped chord parameter of the foot."""
@@ -135,33 +138,80 @@ class PreparedWindow:
         """Index of the nearest chord (the first one on ties) and the clamped chord parameter of the foot.
 
         The answer is the global minimum over all chords, as a full scan would
-        give; `hint` (e.g. the previous answer) only makes it faster: a descent
-        from it finds a near chord, then the chords on each side are scanned,
-        skipping runs whose polyline reach from an anchor point proves them
-        farther than the best one so far.
+        give; `hint` (e.g. the previous answer) only makes it faster.
 
         Args:
             px, py: the point; hint: chord index to start from.
+        """
+        i, t, _ = self._search(px, py, hint, 0.0)
+        return i, t
+
+    def tracked_chord(self, px: float, py: float, slot: int) -> tuple[int, float]:
+        """nearest_chord for a point that moves little between calls (same answer, usually faster).
+
+        Each slot (one per tracked point, e.g. 0 the CG, 1 the preview point)
+        keeps a certificate from its last full search at p0: every chord
+        outside the index range [lo, hi] is farther than R from p0. A point p
+        within d of p0 then only needs the chords lo..hi measured: if the best
+        of them is nearer than R - d, no other chord can be nearer. Otherwise
+        a full search renews the certificate.
+
+        Args:
+            px, py: the point; slot: 0 to 3.
+        """
+        cert = self.certs[slot]
+        if cert is not None:
+            x0, y0, radius, lo, hi = cert
+            moved = math.hypot(px - x0, py - y0)
+            if moved < radius:
+                i, best_d, best_t = -1, math.inf, 0.0
+                xs, ys, dxs, dys, l2s = self.x, self.y, self.dx, self.dy, self.length2
+                for k in range(lo, hi + 1):        # chord_distance2, inlined
+                    x0, y0, dx, dy = xs[k], ys[k], dxs[k], dys[k]
+                    t = ((px - x0) * dx + (py - y0) * dy) / l2s[k]
+                    t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+                    ex, ey = x0 + t * dx - px, y0 + t * dy - py
+                    d = ex * ex + ey * ey
+                    if d < best_d:
+                        i, best_d, best_t = k, d, t
+                if math.sqrt(best_d) + self.slack < radius - moved:
+                    self.best[slot] = i
+                    return i, best_t
+        hint = self.best[slot]
+        i, t, cert = self._search(px, py, hint if hint >= 0 else max(self.best), self.margin)
+        self.certs[slot], self.best[slot] = (px, py, *cert), i
+        return i, t
+
+    def _search(self, px: float, py: float, hint: int, margin: float) -> tuple[int, float, tuple]:
+        """Full exact search: (chord, chord parameter, (R, lo, hi)) with R = best distance + margin and
+        every chord outside lo..hi farther than R.
+
+        A descent from `hint` finds a near chord, then the chords on each side
+        are scanned, skipping runs whose polyline reach from an anchor point
+        proves them farther than the best distance so far plus `margin`.
         """
         distance2 = self.chord_distance2
         last = self.chords - 1
         i = min(max(hint, 0), last)
         best_d, best_t = distance2(i, px, py)
+        seen = [(i, best_d)]
         lo = hi = i
         while lo > 0:
             d, t = distance2(lo - 1, px, py)
             lo -= 1
+            seen.append((lo, d))
             if d > best_d:
                 break
             i, best_d, best_t = lo, d, t
         while hi < last and hi == i:
             d, t = distance2(hi + 1, px, py)
             hi += 1
+            seen.append((hi, d))
             if d < best_d:
                 i, best_d, best_t = hi, d, t
         xs, ys, reach, slack = self.x, self.y, self.reach, self.slack
         hypot, sqrt = math.hypot, math.sqrt
-        limit = sqrt(best_d) + slack
+        limit = sqrt(best_d) + margin + slack
         j = hi + 1
         while j <= last:           # chords j..m lie within reach[m + 1] - reach[j] of point j
             m = bisect.bisect_left(reach, reach[j] + hypot(px - xs[j], py - ys[j]) - limit) - 2
@@ -169,8 +219,9 @@ class PreparedWindow:
                 j = m + 1
                 continue
             d, t = distance2(j, px, py)
+            seen.append((j, d))
             if d < best_d:
-                i, best_d, best_t, limit = j, d, t, sqrt(d) + slack
+                i, best_d, best_t, limit = j, d, t, sqrt(d) + margin + slack
             j += 1
         j = lo - 1
         while j >= 0:              # chords m..j lie within reach[j + 1] - reach[m] of point j + 1
@@ -179,10 +230,13 @@ class PreparedWindow:
                 j = m - 1
                 continue
             d, t = distance2(j, px, py)
+            seen.append((j, d))
             if d <= best_d:        # a lower index wins a tie
-                i, best_d, best_t, limit = j, d, t, sqrt(d) + slack
+                i, best_d, best_t, limit = j, d, t, sqrt(d) + margin + slack
             j -= 1
-        return i, best_t
+        radius = sqrt(best_d) + margin
+        near = [k for k, d in seen if sqrt(d) <= radius]
+        return i, best_t, (radius, min(near), max(near))
 
     def segment(self, i: int) -> tuple[float, ...]:
         """End positions and end tangents (scaled by the arc-length step) of segment i."""
@@ -240,21 +294,20 @@ def _extrapolate(w: PreparedWindow, end: int, px: float, py: float) -> tuple | N
         return None
     offset = -(px - w.x[end]) * ty + (py - w.y[end]) * tx
     return (w.s[end] + along, w.x[end] + along * tx, w.y[end] + along * ty, offset, heading,
-            w.kappa[end], 0.0, w.v[end], w.a[end], -1 if end == 0 else 1,
-            0 if end == 0 else w.chords - 1)
+            w.kappa[end], 0.0, w.v[end], w.a[end], -1 if end == 0 else 1)
 
 
-def foot(w: PreparedWindow, px: float, py: float, hint: int = 0) -> tuple:
+def foot(w: PreparedWindow, px: float, py: float, slot: int = -1) -> tuple:
     """project() as a plain tuple, for the controllers' per-tick path.
 
     Args:
         w: a PreparedWindow of a valid window; px, py: the point [m];
-        hint: a chord index to start the search from (the previous `chord`), for speed only.
+        slot: PreparedWindow.tracked_chord's slot for a point tracked from call
+            to call (same answer, faster), or -1 for a one-off point.
     Returns:
-        (s, x, y, offset, psi_path, kappa, dkappa_ds, v, a, extrapolated, chord): the
-        Projection's fields in order, then the index of the chord found.
+        (s, x, y, offset, psi_path, kappa, dkappa_ds, v, a, extrapolated): the Projection's fields.
     """
-    i, t = w.nearest_chord(px, py, hint)
+    i, t = w.tracked_chord(px, py, slot) if slot >= 0 else w.nearest_chord(px, py)
     if i == 0 and t == 0.0:
         beyond = _extrapolate(w, 0, px, py)
         if beyond is not None:
@@ -278,7 +331,7 @@ def foot(w: PreparedWindow, px: float, py: float, hint: int = 0) -> tuple:
     return (s[i] + t * (s[i + 1] - s[i]), x, y, (dx * (py - y) - dy * (px - x)) / norm,
             psi[i] + t * (psi[i + 1] - psi[i]), kappa[i] + t * (kappa[i + 1] - kappa[i]),
             (kappa[i + 1] - kappa[i]) / (s[i + 1] - s[i]), v[i] + t * (v[i + 1] - v[i]),
-            a[i] + t * (a[i + 1] - a[i]), 0, i)
+            a[i] + t * (a[i + 1] - a[i]), 0)
 
 
 def project(window: TrajectoryWindow | PreparedWindow, px: float, py: float) -> Projection:
@@ -291,7 +344,7 @@ def project(window: TrajectoryWindow | PreparedWindow, px: float, py: float) -> 
         The Projection of the point (see its attributes).
     """
     w = window if isinstance(window, PreparedWindow) else PreparedWindow(window)
-    return Projection(*foot(w, px, py)[:10])
+    return Projection(*foot(w, px, py))
 
 
 def point_at(window: TrajectoryWindow | PreparedWindow, s: float) -> tuple[float, float]:

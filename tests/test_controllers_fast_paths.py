@@ -70,6 +70,25 @@ def test_nearest_chord_is_the_global_minimum_bit_for_bit():
     assert checked > 5000
 
 
+def test_tracked_chord_follows_moving_points_bit_for_bit():
+    rng = np.random.default_rng(5)
+    renewed = 0
+    for window in random_windows(rng):
+        prepared = PreparedWindow(window)
+        for slot in range(4):     # each slot a point walking along the window, with jumps now and then
+            k = int(rng.integers(0, 60))
+            px, py = window.x[k], window.y[k]
+            for step in range(200):
+                if step % 50 == 49:
+                    px, py = px + rng.normal(0, 5.0), py + rng.normal(0, 5.0)
+                else:
+                    px, py = px + rng.normal(0.05, 0.08), py + rng.normal(0.0, 0.08)
+                before = prepared.certs[slot]
+                assert prepared.tracked_chord(px, py, slot) == nearest_chord_brute(window, px, py)
+                renewed += prepared.certs[slot] is not before
+    assert 0 < renewed < 0.5 * 4 * 200 * 10     # the certificate is reused more often than not
+
+
 def test_nearest_chord_tie_goes_to_the_first_chord_whatever_the_hint():
     window = TrajectoryWindow(x=np.array([-1.0, 0.0, 1.0]), y=np.array([1.0, 0.0, 1.0]),
                               psi=np.array([-0.8, 0.0, 0.8]), kappa=np.zeros(3), s=np.array([0.0, 1.5, 3.0]),
@@ -89,7 +108,7 @@ def test_projection_fields_match_the_reference_on_every_window():
             fast = project(prepared, px, py)
             for name, value in expected.items():
                 assert getattr(fast, name) == value, name
-            assert foot(prepared, px, py, int(k))[:10] == tuple(fast.__dict__.values())
+            assert foot(prepared, px, py, int(k) % 4) == tuple(fast.__dict__.values())
 
 
 @pytest.mark.parametrize("law, target", [("faithful", "cg"), ("feedforward", "cg"), ("feedforward", "preview")])
