@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.geometry import SpecError, spec_number
 from controllers.road import Road
+from controllers.spec import SpecError, spec_number
 
 QUINTIC_PEAK_CURV = 10.0 / np.sqrt(3.0)    # max |p''| of p = 10t^3 - 15t^4 + 6t^5
 QUINTIC_PEAK_JERK = 60.0                   # max |p'''|, at the ends

@@ -25,7 +25,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from controllers.geometry import SpecError, spec_number
+from controllers.spec import SpecError, spec_number
 
 V_LIMIT = 50.0 / 3.6   # the paper's domain: below 50 km/h
 
