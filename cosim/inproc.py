@@ -1,37 +1,20 @@
 """In-process hosting of Python components (the `inproc` transport).
 
-`PythonComponentLaunch` says which component to host and how (it is also what
-the Zenoh transport receives to spawn a process); `InprocComponent` imports the
-class, constructs it with the scenario parameters and drives it in this process
-behind the `cosim.hosting.HostedComponent` protocol.
+`PythonComponentLaunch` (from `cosim.launch`) says which component to host and
+how; `InprocComponent` imports the class, constructs it with the scenario
+parameters and drives it in this process behind the
+`cosim.hosting.HostedComponent` protocol. `describe_exception` is the one-line
+text of a component's exception, shared with the Zenoh runner.
 """
 
 from __future__ import annotations
 
 import importlib
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import Any
 
 from cosim.component import Component, ComponentError, Port, Value, ports_by_name
 from cosim.errors import ComponentFailure, UserError
-
-
-@dataclass(frozen=True)
-class PythonComponentLaunch:
-    """How to launch one Python component, whatever the transport.
-
-    Args:
-        name: component name in the scenario.
-        class_path: "package.module:ClassName" of a `cosim.component.Component`.
-        parameters: keyword arguments for the class constructor.
-        period_ticks: master ticks between two steps (>= 1).
-    """
-
-    name: str
-    class_path: str
-    parameters: Mapping[str, Any] = field(default_factory=dict)
-    period_ticks: int = 1
+from cosim.launch import PythonComponentLaunch  # re-exported: its historical home
 
 
 def import_component_class(class_path: str, component: str) -> type[Component]:
@@ -78,7 +61,7 @@ def construct_component(launch: PythonComponentLaunch) -> Component:
                         f"{launch.class_path}: {exc}") from exc
     except Exception as exc:  # user code in __init__: report it, no traceback
         raise UserError(f"component {launch.name!r}: constructor failed: "
-                        f"{_describe(exc)}") from exc
+                        f"{describe_exception(exc)}") from exc
     for port in (*instance.inputs, *instance.outputs):
         if not isinstance(port, Port) or port.size < 1:
             raise UserError(f"component {launch.name!r}: invalid port declaration {port!r}")
@@ -108,7 +91,7 @@ class InprocComponent:
         try:
             return self.component.initialize(t0, inputs)
         except Exception as exc:  # any failure of user code is reported, not raised raw
-            raise ComponentFailure(self.name, None, t0, _describe(exc)) from exc
+            raise ComponentFailure(self.name, None, t0, describe_exception(exc)) from exc
 
     def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Call the component's `step(t, inputs)`."""
@@ -116,7 +99,7 @@ class InprocComponent:
         try:
             return self.component.step(t, inputs)
         except Exception as exc:
-            raise ComponentFailure(self.name, tick, t, _describe(exc)) from exc
+            raise ComponentFailure(self.name, tick, t, describe_exception(exc)) from exc
 
     def stop(self) -> dict[str, float]:
         """Call the component's `finish()` and return its metrics."""
@@ -124,12 +107,16 @@ class InprocComponent:
             metrics = self.component.finish() or {}
         except Exception as exc:
             raise ComponentFailure(self.name, *self._last,
-                                   f"finish() failed: {_describe(exc)}") from exc
+                                   f"finish() failed: {describe_exception(exc)}") from exc
         return {str(k): float(v) for k, v in metrics.items()}
 
 
-def _describe(exc: BaseException) -> str:
-    """One line for an exception: its type (unless a ComponentError) and message."""
+def describe_exception(exc: BaseException) -> str:
+    """One line for an exception: its type (unless a ComponentError) and message.
+
+    Args:
+        exc: an exception raised by a component's code.
+    """
     if isinstance(exc, ComponentError):
         return str(exc)
     return f"{type(exc).__name__}: {exc}"

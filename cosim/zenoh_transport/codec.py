@@ -4,12 +4,12 @@ A message is a 32-byte little-endian header (kind, seq, tick as int64, then
 t as float64) followed either by the signal values of a port list, packed
 as one contiguous float64 byte string in declared port order (scalars as one
 float, arrays flattened), or by a UTF-8 JSON document for control messages.
-Float values round-trip bit for bit (raw IEEE 754 bytes, no text).
+Float values round-trip bit for bit (raw IEEE 754 bytes, no text). The header,
+the kinds and the JSON messages live in `wire` (no numpy) and are re-exported.
 """
 
 from __future__ import annotations
 
-import json
 import math
 import struct
 from collections.abc import Callable, Mapping, Sequence
@@ -19,30 +19,9 @@ from typing import Any
 import numpy as np
 
 from cosim.component import Port, Value
-
-HEADER = struct.Struct("<qqqd")
-"""kind, seq (request number, echoed by the reply), tick, t."""
-
-
-class Kind:
-    """What a message is (plain ints: enum member lookups are slow on the hot path)."""
-
-    HELLO = 1      # master -> component: handshake request
-    START = 2      # master -> component: initialize(t0, inputs)
-    STEP = 3       # master -> component: step(t, inputs)
-    STOP = 4       # master -> component: finish() and exit
-    PORTS = 11     # component -> master: JSON port declarations
-    OUTPUTS = 12   # component -> master: packed outputs
-    METRICS = 13   # component -> master: JSON final metrics
-    ERROR = 14     # component -> master: JSON {"cause": text}
-    DIED = 21      # master watchdog -> master: JSON {"component", "cause"}
-    TIMEOUT = 22   # master watchdog -> master: JSON {"component", "cause"}
-    LIVE = 31      # master -> watchers: packed signal vector of one tick
-    END = 32       # master -> watchers: the run is over
-
-
-class CodecError(ValueError):
-    """A value does not fit its declared port (missing, wrong shape, not a number)."""
+# the stdlib-only part of the wire format, re-exported: one import for both halves
+from cosim.zenoh_transport.wire import (HEADER, CodecError, Kind, decode_json,  # noqa: F401
+                                        encode_json, header_tick)
 
 
 class Layout:
@@ -161,16 +140,6 @@ def value_problem(value: Any, size: int) -> str:
     return ""
 
 
-def encode_json(kind: int, seq: int, tick: int, t: float, document: Any) -> bytes:
-    """A control message: header plus a UTF-8 JSON document."""
-    return HEADER.pack(kind, seq, tick, t) + json.dumps(document).encode()
-
-
-def decode_json(data: bytes) -> Any:
-    """The JSON document of a message made by `encode_json`."""
-    return json.loads(data[HEADER.size:].decode())
-
-
 def ports_to_json(ports: Sequence[Port]) -> list[dict[str, Any]]:
     """Port declarations as JSON-able dicts (for the handshake)."""
     return [{"name": p.name, "size": p.size, "unit": p.unit,
@@ -182,8 +151,3 @@ def ports_from_json(items: Sequence[Mapping[str, Any]]) -> tuple[Port, ...]:
     return tuple(Port(name=str(i["name"]), size=int(i["size"]), unit=str(i["unit"]),
                       description=str(i["description"]), default=float(i["default"]))
                  for i in items)
-
-
-def header_tick(tick: int | None) -> int:
-    """Tick as carried in the header: -1 stands for the initialization phase (None)."""
-    return -1 if tick is None else tick

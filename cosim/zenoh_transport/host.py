@@ -8,26 +8,32 @@ exchange puts one request and waits in a blocking `recv()` on the subscriber
 of that component's replies (exact keys: no wildcard on the hot path); the
 watchdog wakes that wait on a death (of any component) or a missed deadline,
 which then raises `ComponentFailure`.
+
+Start-up is ordered for speed: `spawn()` opens the session and starts the
+processes before this module loads numpy (codec, live view, watchdog), so
+the children's interpreters start while the master finishes its own imports.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import zenoh
 
-from cosim.component import Port, Value
 from cosim.errors import ComponentFailure, UserError
-from cosim.inproc import PythonComponentLaunch
+from cosim.launch import PythonComponentLaunch
 from cosim.zenoh_transport import config
-from cosim.zenoh_transport.codec import (HEADER, CodecError, Kind, Layout, decode_json,
-                                         header_tick, ports_from_json)
-from cosim.zenoh_transport.live import LivePublisher
 from cosim.zenoh_transport.processes import ChildProcess, reap
-from cosim.zenoh_transport.watchdog import Watchdog
+from cosim.zenoh_transport.wire import HEADER, CodecError, Kind, decode_json, header_tick
+
+if TYPE_CHECKING:  # numpy-backed modules load after the processes are spawned
+    import numpy as np
+
+    from cosim.component import Port, Value
+    from cosim.zenoh_transport.live import LivePublisher
+    from cosim.zenoh_transport.watchdog import Watchdog
 
 HELLO_RETRY_S = 0.02
 TERMINATE_GRACE_S = 2.0
@@ -40,6 +46,8 @@ class RemoteComponent:
     def __init__(self, host: "ZenohComponents", spec: PythonComponentLaunch,
                  inputs: tuple[Port, ...], outputs: tuple[Port, ...], pid: int,
                  channel: tuple[Any, Any]) -> None:
+        from cosim.zenoh_transport.codec import Layout
+
         self.name = spec.name
         self.period_ticks = int(spec.period_ticks)
         self.inputs = inputs
@@ -96,6 +104,8 @@ class ZenohComponents:
         self._live: LivePublisher | None = None
         self._seq = 0
         self._failed: dict[str, ComponentFailure] = {}  # by component: raised again on reuse
+        # seconds from each process's start to its handshake answer (None: unknown)
+        self.process_ready_s: dict[str, float | None] = {}
 
     # ----------------------------------------------------------------- lifecycle
     def __enter__(self) -> "ZenohComponents":
@@ -112,6 +122,9 @@ class ZenohComponents:
             self._open_session()
             for spec in self.specs:
                 self._children[spec.name] = self._spawn(spec)
+            from cosim.zenoh_transport.live import LivePublisher
+
+            self._live = LivePublisher(self.session, self.run_id)
         except BaseException:
             self.close()
             raise
@@ -120,6 +133,8 @@ class ZenohComponents:
         """Wait for every component's handshake (once); return `components`."""
         if self._components is None:
             try:
+                from cosim.zenoh_transport.watchdog import Watchdog
+
                 self._components = self._handshake()
                 self._watchdog = Watchdog(self.session, self.run_id, self._children,
                                           self.deadline_s)
@@ -181,7 +196,6 @@ class ZenohComponents:
             self.endpoint = endpoint
             break
         self._token = self.session.liveliness().declare_token(config.master_alive_key(self.run_id))
-        self._live = LivePublisher(self.session, self.run_id)
 
     # ----------------------------------------------------------------- handshake
     def _handshake(self) -> dict[str, RemoteComponent]:
@@ -210,6 +224,8 @@ class ZenohComponents:
                         channels: dict[str, tuple[Any, Any]], ready: dict[str, RemoteComponent],
                         until: float) -> None:
         """Take the handshake replies that arrive before `until`."""
+        from cosim.zenoh_transport.codec import ports_from_json
+
         while pending and time.monotonic() < until:
             got = False
             for name in list(pending):
@@ -227,6 +243,7 @@ class ZenohComponents:
                         self, pending.pop(name), ports_from_json(document["inputs"]),
                         ports_from_json(document["outputs"]), int(document["pid"]),
                         channels[name])
+                    self.process_ready_s[name] = document.get("age_s")
             if not got:
                 time.sleep(0.002)
 
@@ -313,6 +330,12 @@ class ZenohComponents:
         return failure
 
     # ----------------------------------------------------------------- live view
+    @property
+    def live(self) -> "LivePublisher | None":
+        """The run's live publisher (after `spawn`): `live.matching` is a plain
+        attribute, cheap enough to test every tick before building a vector."""
+        return self._live
+
     @property
     def live_matching(self) -> bool:
         """True when some watcher subscribes to this run's live signals."""

@@ -3,7 +3,10 @@
 The master publishes the whole signal vector of every tick on
 `cosim/<run_id>/live/data` (header: LIVE, names version, tick, t; then the
 float64 values), only when some subscriber matches, so an unwatched run pays
-almost nothing. The names of the vector are answered by a queryable on
+almost nothing: a matching listener keeps `LivePublisher.matching` up to date
+as a plain attribute (asking Zenoh for the matching status costs microseconds;
+the listener also reports subscribers that were there before it). The names
+of the vector are answered by a queryable on
 `cosim/<run_id>/live/names`. `watch` is the other end, for another process.
 """
 
@@ -16,7 +19,7 @@ import numpy as np
 import zenoh
 
 from cosim.zenoh_transport import config
-from cosim.zenoh_transport.codec import HEADER, Kind
+from cosim.zenoh_transport.wire import HEADER, Kind
 
 NAMES_QUERY_TIMEOUT_S = 2.0
 WATCH_QUEUE = 4096  # samples kept for a slow watcher; older ones are dropped
@@ -33,16 +36,16 @@ class LivePublisher:
     def __init__(self, session: zenoh.Session, run_id: str) -> None:
         self._publisher = session.declare_publisher(
             config.live_data_key(run_id), congestion_control=zenoh.CongestionControl.DROP)
+        self.matching = False  # True while at least one subscriber listens (see module doc)
+        self._listener = self._publisher.declare_matching_listener(self._on_matching)
         self._names: list[str] = []
         self._names_ref: object = None  # the caller's list: an identity check per tick
         self._version = 0
         self._queryable = session.declare_queryable(config.live_names_key(run_id),
                                                     self._answer_names)
 
-    @property
-    def matching(self) -> bool:
-        """True when at least one subscriber listens to this run's live data."""
-        return self._publisher.matching_status.matching
+    def _on_matching(self, status: zenoh.MatchingStatus) -> None:
+        self.matching = status.matching
 
     def publish(self, tick: int, t: float, names: Sequence[str], values: np.ndarray) -> None:
         """Publish one tick's signal vector if anybody listens.
@@ -53,7 +56,7 @@ class LivePublisher:
             names: one name per element of `values` (the same list object each tick is cheapest).
             values: float64 vector of every signal at this tick.
         """
-        if not self._publisher.matching_status.matching:
+        if not self.matching:
             return
         if names is not self._names_ref and list(names) != self._names:
             self._set_names(names, values)
@@ -67,6 +70,7 @@ class LivePublisher:
         """Tell watchers the run is over; undeclare everything."""
         self._publisher.put(HEADER.pack(Kind.END, self._version, -1, 0.0))
         self._queryable.undeclare()
+        self._listener.undeclare()
         self._publisher.undeclare()
 
     def _set_names(self, names: Sequence[str], values: np.ndarray) -> None:

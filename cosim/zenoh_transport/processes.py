@@ -3,6 +3,8 @@
 Each process runs `python -m cosim.zenoh_transport.runner --name <name> ...`,
 so `ps` shows which component it hosts. Its stdout and stderr go to a
 temporary file whose tail is quoted when the process dies unexpectedly.
+This module loads neither numpy nor zenoh: the master spawns the processes
+before it loads them, so that they start in parallel with its own imports.
 """
 
 from __future__ import annotations
@@ -18,16 +20,16 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 import cosim
 from cosim.errors import UserError
-from cosim.inproc import PythonComponentLaunch
+from cosim.launch import PythonComponentLaunch
 
 TAIL_CHARS = 800
 
 
 def _json_default(value: Any) -> Any:
+    import numpy as np  # only numpy values reach here, so numpy is loaded already
+
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):

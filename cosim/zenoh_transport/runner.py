@@ -27,7 +27,8 @@ import zenoh
 
 from cosim.component import Component
 from cosim.errors import UserError
-from cosim.inproc import PythonComponentLaunch, _describe, construct_component
+from cosim.inproc import PythonComponentLaunch, construct_component, describe_exception
+from cosim.startup import process_age_s
 from cosim.zenoh_transport import config
 from cosim.zenoh_transport.codec import (CodecError, Kind, Layout, HEADER,
                                          encode_json, ports_to_json)
@@ -67,7 +68,8 @@ class _Server:
         except UserError as exc:
             self.build_error = str(exc)
         except Exception as exc:  # user code in __init__: report, do not crash
-            self.build_error = f"component {launch.name!r}: constructor failed: {_describe(exc)}"
+            self.build_error = (f"component {launch.name!r}: constructor failed: "
+                                f"{describe_exception(exc)}")
         if self.component is not None:
             self.in_layout = Layout(self.component.inputs, "input")
             self.out_layout = Layout(self.component.outputs)
@@ -83,7 +85,7 @@ class _Server:
             try:
                 outputs = self._step_component(t, self._decode(data))
             except Exception as exc:  # user code: the master reports it with tick and time
-                return encode_json(Kind.ERROR, seq, tick, t, {"cause": _describe(exc)}), False
+                return encode_json(Kind.ERROR, seq, tick, t, {"cause": describe_exception(exc)}), False
             try:
                 return self._encode(_OUTPUTS, seq, tick, t, outputs, True), False
             except CodecError as exc:
@@ -103,7 +105,8 @@ class _Server:
             return encode_json(Kind.ERROR, seq, -1, 0.0, {"cause": self.build_error, "build": True})
         return encode_json(Kind.PORTS, seq, -1, 0.0, {
             "inputs": ports_to_json(self.component.inputs),
-            "outputs": ports_to_json(self.component.outputs), "pid": os.getpid()})
+            "outputs": ports_to_json(self.component.outputs), "pid": os.getpid(),
+            "age_s": process_age_s()})
 
     def _step(self, kind: int, seq: int, tick: int, t: float, data: bytes) -> bytes:
         assert self.component is not None
@@ -114,7 +117,7 @@ class _Server:
             else:
                 outputs = self.component.step(t, inputs)
         except Exception as exc:  # user code: the master reports it with tick and time
-            return encode_json(Kind.ERROR, seq, tick, t, {"cause": _describe(exc)})
+            return encode_json(Kind.ERROR, seq, tick, t, {"cause": describe_exception(exc)})
         try:
             return self.out_layout.encode(Kind.OUTPUTS, seq, tick, t, outputs, finite=True)
         except CodecError as exc:
@@ -126,7 +129,8 @@ class _Server:
             metrics = self.component.finish() or {}
             document: dict[str, Any] = {str(k): float(v) for k, v in metrics.items()}
         except Exception as exc:
-            return encode_json(Kind.ERROR, seq, tick, t, {"cause": f"finish() failed: {_describe(exc)}"})
+            cause = f"finish() failed: {describe_exception(exc)}"
+            return encode_json(Kind.ERROR, seq, tick, t, {"cause": cause})
         return encode_json(Kind.METRICS, seq, tick, t, document)
 
 

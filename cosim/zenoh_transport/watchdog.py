@@ -18,7 +18,7 @@ from collections.abc import Mapping
 import zenoh
 
 from cosim.zenoh_transport import config
-from cosim.zenoh_transport.codec import Kind, encode_json
+from cosim.zenoh_transport.wire import Kind, encode_json
 from cosim.zenoh_transport.processes import ChildProcess
 
 POLL_S = 0.02
