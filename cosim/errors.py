@@ -12,13 +12,26 @@ the problem is about the whole file).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import difflib
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 
 class UserError(Exception):
     """Base of every error caused by user input; shown as is, without traceback."""
+
+
+def did_you_mean(name: str, candidates: Iterable[str], n: int = 1) -> str:
+    """A spelling hint for a message: " (did you mean 'x'?)", or "" when nothing is close.
+
+    Args:
+        name: the misspelt name.
+        candidates: the valid names, in the order to prefer among equally close ones.
+        n: how many close names to offer at most.
+    """
+    close = difflib.get_close_matches(name, list(candidates), n=n)
+    return f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,6 @@ parameter values against the FMU (names, types, min/max).
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 import math
 import zipfile
@@ -24,7 +23,7 @@ from fmpy import read_model_description
 from fmpy.model_description import ModelVariable
 
 from cosim.component import Port
-from cosim.errors import FmuInterfaceError
+from cosim.errors import FmuInterfaceError, did_you_mean
 
 if TYPE_CHECKING:
     from cosim.scenario_models import Scenario
@@ -173,7 +172,7 @@ def _canonical_names(model_variables: list[ModelVariable], mapping: dict[str, st
         var = by_name.get(fmu_name)
         if var is None:
             problems.append(f"{canonical!r} maps to {fmu_name!r}, which the FMU does not "
-                            f"have{_did_you_mean(fmu_name, by_name)}")
+                            f"have{did_you_mean(fmu_name, by_name, n=3)}")
         elif var.causality not in SIGNAL_CAUSALITIES:
             problems.append(f"{canonical!r} maps to {fmu_name!r}, a {var.causality} variable; "
                             "only inputs, outputs and parameters can be mapped")
@@ -193,12 +192,6 @@ def _canonical_names(model_variables: list[ModelVariable], mapping: dict[str, st
     if problems:
         raise FmuInterfaceError("\n".join(prefix + p for p in problems))
     return names
-
-
-def _did_you_mean(name: str, candidates: Mapping[str, Any]) -> str:
-    """' (did you mean 'x'?)' from the closest candidate names, or ''."""
-    close = difflib.get_close_matches(name, list(candidates), n=3)
-    return f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""
 
 
 def _unsupported_reason(var: ModelVariable) -> str | None:
@@ -292,7 +285,7 @@ def _parameter_problem(interface: FmuInterface, name: str, value: float) -> str 
     info = interface.parameters.get(name)
     if info is None:
         return (f"FMU {fmu!r} has no parameter {name!r}"
-                f"{_did_you_mean(name, interface.parameters)}")
+                f"{did_you_mean(name, interface.parameters, n=3)}")
     if not math.isfinite(value):
         return f"parameter {name!r} = {value!r} is not finite"
     if info.min is not None and value < info.min:

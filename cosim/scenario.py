@@ -38,7 +38,6 @@ Example:
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -46,7 +45,7 @@ from typing import Any
 import yaml
 from pydantic import ValidationError
 
-from cosim.errors import Problem, ScenarioError
+from cosim.errors import Problem, ScenarioError, did_you_mean
 from cosim.scenario_checks import BUILTIN_FMUS, IDENTIFIER, semantic_problems, whole_ticks
 from cosim.scenario_models import (ComponentSpec, Connection, FmuSpec, PythonSpec,
                                    RecordSpec, Scenario, Uncertainty)
@@ -163,8 +162,7 @@ def _suggestion(loc: tuple[str | int, ...]) -> str:
     """' (did you mean ...?)' for a misspelt field name."""
     if not loc or not isinstance(loc[-1], str):
         return ""
-    close = difflib.get_close_matches(loc[-1], sorted(_field_names()), n=1)
-    return f" (did you mean {close[0]!r}?)" if close else ""
+    return did_you_mean(loc[-1], sorted(_field_names()))
 
 
 def apply_overrides(data: Any, overrides: Sequence[str], lines: LineMap) -> list[Problem]:

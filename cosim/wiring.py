@@ -12,13 +12,12 @@ error. Every problem is reported at once, with the connection's YAML line.
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from cosim.component import Port
-from cosim.errors import Problem, WiringError
+from cosim.errors import Problem, WiringError, did_you_mean
 
 PortTable = Mapping[str, tuple[tuple[Port, ...], tuple[Port, ...]]]
 
@@ -116,9 +115,7 @@ def _expand_short(connection: Any, ports: PortTable, text: str) -> tuple[list[Ed
 
 def _unknown_component(name: str, ports: PortTable) -> str:
     """Message for a connection naming a component that does not exist."""
-    close = difflib.get_close_matches(name, list(ports), n=1)
-    hint = f" (did you mean {close[0]!r}?)" if close else ""
-    return f"no component or source named {name!r}{hint}; known: {', '.join(ports)}"
+    return f"no component or source named {name!r}{did_you_mean(name, ports)}; known: {', '.join(ports)}"
 
 
 def _port_problem(component: str, port: str, side: str, ports: PortTable,
@@ -137,9 +134,7 @@ def _port_problem(component: str, port: str, side: str, ports: PortTable,
     if reason:
         return f"{component}.{port} cannot be connected: it is {reason}"
     names = [p.name for p in wanted]
-    close = difflib.get_close_matches(port, names, n=1)
-    hint = f" (did you mean {close[0]!r}?)" if close else ""
-    return (f"{component!r} has no {side} {port!r}{hint}; its {side}s: "
+    return (f"{component!r} has no {side} {port!r}{did_you_mean(port, names)}; its {side}s: "
             f"{', '.join(names) or 'none'}")
 
 
