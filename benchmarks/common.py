@@ -10,17 +10,7 @@ part that matters, and returns seconds per unit of work.
 from __future__ import annotations
 
 import statistics
-import sys
 from collections.abc import Callable, Mapping
-from pathlib import Path
-
-REPO_DIR = Path(__file__).resolve().parent.parent
-
-
-def add_repo_to_path() -> None:
-    """Make `cosim`, `controllers`, ... importable when a benchmark runs as a script."""
-    if str(REPO_DIR) not in sys.path:
-        sys.path.insert(0, str(REPO_DIR))
 
 
 def interleaved(cases: Mapping[str, Callable[[], float]], repeats: int) -> dict[str, list[float]]:
