@@ -148,6 +148,18 @@ def _unique(values: list[str]) -> list[str]:
     return list(dict.fromkeys(values))
 
 
+def session_mode(listen: list[str], connect: list[str]) -> str:
+    """"client" for a node that listens nowhere and joins one endpoint (a router), else "peer".
+
+    A router forwards for its clients but not between peers that cannot reach
+    each other (Zenoh's peer-to-peer routing), so a node behind a router is a client.
+
+    Args:
+        listen / connect: the node's endpoints.
+    """
+    return "client" if not listen and len(connect) == 1 else "peer"
+
+
 def zenoh_settings(settings: DeploySettings | None, mode: str, listen: list[str],
                    connect: list[str]) -> dict[str, Any]:
     """The Zenoh configuration document (a dict) for one session.

@@ -30,7 +30,8 @@ from typing import Any
 import zenoh
 
 from cosim import worker_protocol as proto
-from cosim.deploy import DeploySettings, check_endpoint, zenoh_config, zenoh_settings
+from cosim.deploy import (DeploySettings, check_endpoint, session_mode, zenoh_config,
+                          zenoh_settings)
 from cosim.errors import UserError
 from cosim.inproc import PythonComponentLaunch
 from cosim.zenoh_transport.config import check_key_chunk
@@ -59,6 +60,7 @@ class Worker:
         self._children: dict[tuple[str, str], ChildProcess] = {}
         self._lock = threading.Lock()
         self._session: Any = None
+        self.mode = session_mode(self.settings.listen, self.settings.connect)
 
     # ------------------------------------------------------------------ serving
     def serve(self, stop_event: threading.Event | None = None,
@@ -73,7 +75,7 @@ class Worker:
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGTERM, signal.SIGINT):
                 signal.signal(sig, lambda *_: stop_event.set())
-        conf = zenoh_config(self.settings, "peer", self.settings.listen, self.settings.connect)
+        conf = zenoh_config(self.settings, self.mode, self.settings.listen, self.settings.connect)
         try:
             session = zenoh.open(conf)
         except zenoh.ZError as exc:
@@ -154,7 +156,9 @@ class Worker:
             raise ValueError("start request without a master endpoint")
         launch = PythonComponentLaunch(component, class_path, dict(request.get("parameters", {})),
                                        int(request.get("period_ticks", 1)))
-        session_conf = zenoh_settings(self.settings, "peer", [],
+        # behind a router (client mode) the component falls back to the router when the
+        # master's own endpoint cannot be reached from here
+        session_conf = zenoh_settings(self.settings, self.mode, [],
                                       list(dict.fromkeys([*connect, *self.settings.connect])))
         with self._lock:
             if (run_id, component) in self._children:

@@ -25,7 +25,7 @@ from typing import Any
 import zenoh
 
 from cosim import worker_protocol as proto
-from cosim.deploy import DeploySettings, zenoh_config, zenoh_settings
+from cosim.deploy import DeploySettings, session_mode, zenoh_config, zenoh_settings
 from cosim.errors import ComponentFailure, UserError
 from cosim.inproc import PythonComponentLaunch
 from cosim.zenoh_transport import config
@@ -80,7 +80,8 @@ def list_workers(settings: DeploySettings, timeout_s: float = 1.0) -> list[dict[
         timeout_s: how long to look.
     """
     try:
-        session = zenoh.open(zenoh_config(settings, "peer", settings.listen, settings.connect))
+        mode = session_mode(settings.listen, settings.connect)
+        session = zenoh.open(zenoh_config(settings, mode, settings.listen, settings.connect))
     except zenoh.ZError as exc:
         raise UserError(f"cannot open a Zenoh session to {settings.connect}: {exc}") from None
     with session:

@@ -283,8 +283,9 @@ def test_tls_worker_serves_only_peers_with_certificates_of_its_ca(certs):
         assert [w["name"] for w in list_workers(good, 0.5)] == ["wtls"]
         rogue = good.model_copy(update={"tls": tls_of(certs / "rogue")})
         assert list_workers(rogue, 0.5) == []
-        plain = DeploySettings(connect=[f"tcp/127.0.0.1:{port}"])
-        assert list_workers(plain, 0.5) == []
+        plain = DeploySettings(connect=[f"tcp/127.0.0.1:{port}"])  # a client: fails at once
+        with pytest.raises(UserError, match=r"cannot open a Zenoh session to \['tcp/127"):
+            list_workers(plain, 0.5)
         spec = launch("mix", "Mixer", gain=-2.0)
         local = InprocComponent(spec)
         with DistributedComponents([spec, launch("echo", "Echo")], f"t-tls-{os.getpid()}", 5.0,
@@ -336,3 +337,36 @@ def test_example_deployment_files_tls_and_access_control(tmp_path):
             assert hosted.components["mix"].stop() == local.stop()
     finally:
         agent.close()
+
+
+def test_router_joins_master_and_worker_that_only_know_the_router():
+    """The worker listens nowhere: the master finds it and starts a component
+    through the router alone (`cosim router`)."""
+    from cosim.router import run_router
+    router_endpoint = free_tcp_endpoint()
+    stop, ready = threading.Event(), threading.Event()
+    router = threading.Thread(target=run_router, args=(DeploySettings(listen=[router_endpoint]),
+                                                       stop, ready))
+    router.start()
+    agent = None
+    try:
+        assert ready.wait(20)
+        agent = WorkerThread("wr", DeploySettings(connect=[router_endpoint]))
+        assert agent.worker.mode == "client"
+        assert [w["name"] for w in list_workers(DeploySettings(connect=[router_endpoint]),
+                                                1.0)] == ["wr"]
+        spec = launch("mix", "Mixer", gain=4.0)
+        local = InprocComponent(spec)
+        with DistributedComponents([spec], f"t-router-{os.getpid()}", 5.0,
+                                   placement={"mix": "wr"},
+                                   settings=settings_for(router_endpoint)) as hosted:
+            inputs = {"u": -1.0, "w": np.array([3.0, 0.0, 1.0])}
+            remote = hosted.components["mix"]
+            assert bits(remote.start(0.0, inputs)) == bits(local.start(0.0, inputs))
+            for k in range(1, 20):
+                assert bits(remote.step(k, k * 0.01, inputs)) == bits(local.step(k, k * 0.01, inputs))
+    finally:
+        if agent is not None:
+            agent.close()
+        stop.set()
+        router.join()
