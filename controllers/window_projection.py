@@ -103,28 +103,29 @@ class PreparedWindow:
     chords that cannot be nearer than the best one found so far.
 
     Args:
-        window: a valid trajectory window.
+        window: a valid trajectory window, or its fields as rows of a float64 matrix.
     """
 
-    def __init__(self, window: TrajectoryWindow) -> None:
-        x, y = window.x.tolist(), window.y.tolist()
-        self.x, self.y, self.psi = x, y, window.psi.tolist()
-        self.kappa, self.s = window.kappa.tolist(), window.s.tolist()
-        self.v, self.a = window.v.tolist(), window.a.tolist()
-        self.dx = [b - a for a, b in zip(x[:-1], x[1:])]
-        self.dy = [b - a for a, b in zip(y[:-1], y[1:])]
-        self.length2 = [max(dx * dx + dy * dy, 1e-300) for dx, dy in zip(self.dx, self.dy)]
-        reach = [0.0]
-        for dx, dy in zip(self.dx, self.dy):
-            reach.append(reach[-1] + math.hypot(dx, dy) * (1.0 + 1e-12))
-        self.reach = reach
+    def __init__(self, window: TrajectoryWindow | np.ndarray) -> None:
+        # one (field, point) matrix in controllers.trajectory.FIELDS order
+        matrix = window if isinstance(window, np.ndarray) else np.array(
+            [getattr(window, name) for name, _, _ in FIELDS], dtype=np.float64)
+        self.x, self.y, self.psi, self.kappa, self.s, self.v, self.a = matrix.tolist()
+        delta = matrix[:2, 1:] - matrix[:2, :-1]            # chord dx, dy (as np.diff)
+        square = delta * delta
+        length2 = square[0] + square[1]
+        reach = np.zeros(matrix.shape[1])
+        np.cumsum(np.sqrt(length2) * (1.0 + 1e-12), out=reach[1:])
         # slack of the skip test: covers rounding in reach, distances and squared distances
-        self.slack = 1e-9 * (1.0 + reach[-1] + max(map(abs, x)) + max(map(abs, y)))
+        self.slack = 1e-9 * (1.0 + float(reach[-1]) + 2.0 * float(np.max(np.abs(matrix[:2]))))
+        self.dx, self.dy = delta.tolist()
+        self.reach = reach.tolist()
+        self.length2 = np.maximum(length2, 1e-300).tolist()
         self.chords = len(self.dx)
         # tracked_chord's state per slot: certificate (x0, y0, R, lo, hi) and last answer (-1: none)
         self.certs: list[tuple | None] = [None, None, None, None]
         self.best = [-1, -1, -1, -1]
-        self.margin = 2.0 * reach[-1] / self.chords
+        self.margin = 2.0 * self.reach[-1] / self.chords
 
     def chord_distance2(self, i: int, px: float, py: float) -> tuple[float, float]:
         """Squared distance from (px, py) to chord i and the clamped chord parameter of the foot."""

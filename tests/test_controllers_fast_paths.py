@@ -181,6 +181,12 @@ def test_input_reader_reuses_a_window_only_while_it_is_unchanged():
         reader.read(plant | bad, 0.06)
     with pytest.raises(ComponentError, match=r"at t = 0.07: ref_s must increase"):
         reader.read(plant | bad, 0.07)                                            # not cached as good
+    short = dict(frozen, ref_v=np.ones(10))
+    with pytest.raises(ComponentError, match=r"at t = 0.071: ref_v: expected 64 values, got shape \(10,\)"):
+        reader.read(plant | short, 0.071)
+    holed = dict(frozen, ref_kappa=np.where(np.arange(64) == 3, np.inf, 0.0))
+    with pytest.raises(ComponentError, match=r"at t = 0.072: ref_kappa\[3\] is not finite: inf"):
+        reader.read(plant | holed, 0.072)
     empty = {k: np.zeros(64) for k in frozen}
     assert reader.read(plant | empty, 0.08)[1] is None
     with pytest.raises(ComponentError, match=r"input 'vy' is not finite at t = 0.09: nan"):
