@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from cosim.figures import build_figure, save_png
-from cosim.metrics import METRIC_NAMES, analyse_run
+from cosim.metrics import analyse_run, ordered_metric_names
 from cosim.metrics_rundata import AnalysisError, RunData, load_run, read_json_object
 
 
@@ -51,7 +51,7 @@ def metrics_table(labels: Sequence[str], metrics: Sequence[dict[str, float]]
     The platform's metrics come first in their usual order, then other keys sorted.
     """
     present = set().union(*metrics) if metrics else set()
-    names = [n for n in METRIC_NAMES if n in present] + sorted(present - set(METRIC_NAMES))
+    names = ordered_metric_names(present)
     return names, [[m.get(n) for m in metrics] for n in names]
 
 

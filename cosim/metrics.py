@@ -40,6 +40,15 @@ METRIC_NAMES = (
 NOTES_FILE = "metrics_notes.txt"
 
 
+def ordered_metric_names(present: set[str]) -> list[str]:
+    """Metric names in table order: the platform's in METRIC_NAMES order, then the others sorted.
+
+    Args:
+        present: the names some run or sample has.
+    """
+    return [n for n in METRIC_NAMES if n in present] + sorted(present - set(METRIC_NAMES))
+
+
 @dataclass
 class MetricsReport:
     """Computed metrics and the notes on what was left out and why."""

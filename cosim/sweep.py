@@ -228,10 +228,10 @@ def execute_samples(task: Callable[..., tuple[str, dict[str, float], str]],
 
 
 def _metric_names(samples: Sequence[SampleResult]) -> list[str]:
-    from cosim.metrics import METRIC_NAMES
+    """Every metric some sample has, in table order."""
+    from cosim.metrics import ordered_metric_names
 
-    present = set().union(*(s.metrics for s in samples)) if samples else set()
-    return [n for n in METRIC_NAMES if n in present] + sorted(present - set(METRIC_NAMES))
+    return ordered_metric_names(set().union(*(s.metrics for s in samples)) if samples else set())
 
 
 def summarize_samples(samples: Sequence[SampleResult]) -> dict[str, dict[str, float]]:

@@ -15,7 +15,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from analysis_synthetic import write_run  # noqa: E402
 
 from cosim.compare import run_metrics  # noqa: E402
-from cosim.metrics import compute_metrics, rms, write_metrics  # noqa: E402
+from cosim.metrics import compute_metrics, ordered_metric_names, rms, write_metrics  # noqa: E402
 from cosim.metrics_cones import cone_hits, cones_inside  # noqa: E402
 from cosim.metrics_rundata import AnalysisError, load_run  # noqa: E402
 
@@ -166,6 +166,12 @@ def test_bad_json_files_of_a_run_are_named_by_every_reader(tmp_path, name, text,
     for reader in readers:
         with pytest.raises(AnalysisError, match="^" + re.escape(path) + message):
             reader()
+
+
+def test_metric_table_order_is_the_platform_order_then_the_rest_sorted():
+    names = {"planner_steps", "rms_ex", "cone_hits", "a_custom", "rms_yc"}
+    assert ordered_metric_names(names) == ["rms_yc", "rms_ex", "cone_hits", "a_custom", "planner_steps"]
+    assert ordered_metric_names(set()) == []
 
 
 def test_cone_inside_rotated_rectangle_exact_geometry():
