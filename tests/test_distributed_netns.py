@@ -60,7 +60,8 @@ class Host:
     def __init__(self, lab: netns.NetLab, host: str, name: str, *extra: str) -> None:
         self.name = name
         argv = [sys.executable, "-m", "cosim.cli", "worker", "--name", name,
-                "--allow", "tests.zenoh_components", "--allow", "cosim.sources", *extra]
+                "--allow", "tests.zenoh_components", "--allow", "cosim.sources",
+                "--allow", "controllers.", *extra]
         self.proc = subprocess.Popen(lab.exec(host, argv), cwd=ROOT, env=_env(),
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                      start_new_session=True, text=True)
@@ -173,6 +174,49 @@ def test_three_hosts_bit_identical_to_local_run(lab, hosts, tmp_path):
         cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=60)
     assert listing.returncode == 0 and "2 worker(s)" in listing.stdout
     assert "wa" in listing.stdout and "wb" in listing.stdout
+
+
+CLOSED_LOOP = """\
+name: closed_loop
+duration: 1.5
+tick: 0.01
+components:
+  vehicle: {fmu: Bicycle, parameters: {vx0: 10.0}}
+  controller: {python: controllers.backstepping:BacksteppingController, period: 0.01,
+               parameters: {adaptive: true, lateral_law: feedforward, mu0: 0.8}}
+  planner:
+    python: controllers.planner:Planner
+    period: 0.1
+    parameters:
+      road: {builder: two_lane, length: 300, radius: 150}
+      lane: 0
+      manoeuvre: {type: lane_change, at: 5.0, to_lane: 1, a_lat: 1.5, j_lat: 2.0}
+      speed: {v_max: 12.0, a_lat_max: 2.0, a_max: 1.0, d_max: 1.5, j_max: 1.0}
+connections:
+  - vehicle -> controller
+  - vehicle -> planner
+  - planner -> controller
+  - controller.delta -> vehicle.delta
+  - controller.torque -> vehicle.torque
+"""
+
+
+def test_real_controller_and_planner_on_two_hosts_match_local_run(lab, hosts, tmp_path):
+    scenario = tmp_path / "closed_loop.yaml"
+    scenario.write_text(CLOSED_LOOP)
+    assert main(["run", str(scenario), "--out", str(tmp_path / "local"), "--transport",
+                 "inproc", "--no-figures"]) == 0
+    code, err = finish(start_master(lab, scenario, tmp_path / "remote", "--place",
+                                    "controller=wa", "--place", "planner=wb"))
+    assert code == 0, err
+    expected = (tmp_path / "local" / "signals.csv").read_bytes()
+    assert (tmp_path / "remote" / "signals.csv").read_bytes() == expected
+    _, data = read_signals(tmp_path / "remote" / "signals.csv")
+    assert data.shape[0] == 151
+    arrays = sorted(p.relative_to(tmp_path / "local") for p in (tmp_path / "local").rglob("arrays/*"))
+    assert arrays, "the planner's trajectory windows are recorded as arrays"
+    for path in arrays:
+        assert (tmp_path / "remote" / path).read_bytes() == (tmp_path / "local" / path).read_bytes()
 
 
 def test_missing_worker_fails_before_tick_0(lab, hosts, tmp_path):
