@@ -1,4 +1,5 @@
-"""The `cosim` command line: run, validate, schema, build-fmus.
+"""The `cosim` command line: run, validate, schema, build-fmus (and, registered
+from their modules: watch, worker/workers/router, plot/compare/sweep).
 
 Every user error (bad scenario, FMU, wiring, parameters) prints one clear
 message on stderr and exits with status 2, without a traceback; a run whose
@@ -18,7 +19,6 @@ from typing import Any, Optional
 
 import typer
 from rich.console import Console
-from rich.table import Table
 
 from cosim.errors import UserError
 
@@ -71,9 +71,12 @@ def run(
     """Run a scenario and write its run folder."""
     from cosim.run import run_scenario
     from cosim.scenario import load_scenario
+    from cosim.startup import StartupClock
 
+    clock = StartupClock.from_process_start()  # time to tick 0 as the user sees it
     try:
         loaded = load_scenario(scenario, overrides=set_)
+        clock.mark("scenario_loaded")
         folder = out if out is not None else default_run_dir(loaded.name)
         print(f"run folder: {folder}", flush=True)
         settings = None
@@ -83,7 +86,7 @@ def run(
         with _sigterm_interrupts():
             result = run_scenario(loaded, folder, transport=transport, realtime=realtime,
                                   progress=sys.stdout.isatty(), place=place, deploy=settings,
-                                  deadline_s=deadline)
+                                  deadline_s=deadline, clock=clock, on_live=_print_live)
     except UserError as error:
         raise _fail(error) from None
     if result.ticks > 0:
@@ -94,6 +97,12 @@ def run(
         Console(stderr=True, highlight=False, soft_wrap=True).print(
             f"[red]run failed:[/red] {result.error}", markup=True)
         raise typer.Exit(EXIT_FAILED_RUN)
+
+
+def _print_live(run_id: str, endpoint: str) -> None:
+    """Tell the user how to watch the run live (called before tick 0)."""
+    print(f"run id: {run_id}  live: {endpoint}  (watch: cosim watch {run_id} "
+          f"--connect {endpoint})", flush=True)
 
 
 @contextlib.contextmanager
@@ -142,25 +151,15 @@ def analyse_run_folder(result: Any, figures: bool) -> list[str]:
 
 
 def print_summary(result: Any, console: Console | None = None) -> None:
-    """The closing summary table of a run.
+    """The closing summary of a run: run table, then metrics table (cosim.summary).
 
     Args:
         result: a cosim.run.RunResult.
         console: where to print (default: stdout).
     """
-    console = console or Console(highlight=False)
-    table = Table(title=f"run {result.status}: {result.out_dir}", show_header=False)
-    table.add_column("quantity")
-    table.add_column("value", justify="right")
-    table.add_row("ticks", str(result.ticks))
-    table.add_row("sim time", f"{result.sim_time_s:.6g} s")
-    table.add_row("wall time", f"{result.wall_time_s:.4g} s")
-    table.add_row("real-time factor", f"{result.real_time_factor:.4g}")
-    for key, value in (result.realtime or {}).items():
-        table.add_row(f"realtime.{key}", f"{value:.4g}" if isinstance(value, float) else str(value))
-    for key, value in result.metrics.items():
-        table.add_row(key, f"{value:.6g}" if isinstance(value, (int, float)) else str(value))
-    console.print(table)
+    from cosim.summary import print_summary as print_tables
+
+    print_tables(result, console)
 
 
 @app.command()
@@ -206,6 +205,10 @@ _register_distributed(app)
 from cosim.cli_analysis import register as _register_analysis  # noqa: E402
 
 _register_analysis(app)
+
+from cosim.cli_watch import register as _register_watch  # noqa: E402
+
+_register_watch(app)
 
 
 def normalize_realtime(argv: Sequence[str]) -> list[str]:

@@ -79,7 +79,8 @@ def _fmu_entry(plan: Any) -> dict[str, Any]:
 
 
 def finish_manifest(manifest: dict[str, Any], result: Any) -> dict[str, Any]:
-    """The final manifest: status, error, ticks, times, real-time factor, pacing stats.
+    """The final manifest: status, error, ticks, times, real-time factor, pacing
+    stats, time to tick 0 and the start-up marks.
 
     Args:
         manifest: the manifest written before tick 0.
@@ -94,5 +95,7 @@ def finish_manifest(manifest: dict[str, Any], result: Any) -> dict[str, Any]:
         "wall_time_s": result.wall_time_s,
         "real_time_factor": result.real_time_factor,
         "realtime": result.realtime,
+        "time_to_tick0_s": result.time_to_tick0_s,
+        "startup": result.startup,
     })
     return final

@@ -126,9 +126,16 @@ class Master:
         """t = t0 + tick * h, computed from the integer tick."""
         return self.t0 + tick * self.tick
 
-    def run(self) -> None:
-        """Initialize, then run every tick up to total_ticks."""
+    def run(self, after_initialize: Callable[[], None] | None = None) -> None:
+        """Initialize, then run every tick up to total_ticks.
+
+        Args:
+            after_initialize: called once when tick 0 (the initialization phase)
+                is complete, e.g. to time the start-up.
+        """
         self.initialize()
+        if after_initialize is not None:
+            after_initialize()
         for k in range(1, self.total_ticks + 1):
             self.step_tick(k)
 

@@ -2,11 +2,16 @@
 
 `prepare_run` resolves and checks everything that can be checked before any
 component starts (FMUs built and described, parameters checked, Python classes
-imported, periods in ticks); `run_scenario` then starts the hosts (FMUs
-in-process via fmpy; Python components in-process or as Zenoh processes),
-resolves the wiring from the hosted ports, runs the master with the recorder
-(plus progress bar, real-time pacer and live publisher) and writes the run
-folder: signals.csv, arrays/, manifest.json, metrics.json.
+imported, periods in ticks); `run_scenario` starts the hosts (FMUs in-process
+via fmpy; Python components in-process or as Zenoh processes), resolves the
+wiring from the hosted ports, runs the master with the recorder (plus progress
+bar, real-time pacer and live publisher) and writes the run folder:
+signals.csv, arrays/, manifest.json (with the start-up marks and
+`time_to_tick0_s`), metrics.json.
+
+This module loads numpy, fmpy and the component classes only where they are
+needed, after the Zenoh component processes have been spawned: their start-up
+then overlaps the master's (see `run_scenario`).
 """
 
 from __future__ import annotations
@@ -14,21 +19,18 @@ from __future__ import annotations
 import contextlib
 import time
 import uuid
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from cosim.errors import UserError
-from cosim.fmu_component import FmuComponent
-from cosim.inproc import InprocComponent, PythonComponentLaunch, import_component_class
-from cosim.manifest import base_manifest, finish_manifest
-from cosim.master import Master
-from cosim.pacing import RealtimePacer
-from cosim.progress import ProgressBar
-from cosim.recorder import Recorder, write_json
+from cosim.launch import PythonComponentLaunch
+from cosim.startup import StartupClock
+
+if TYPE_CHECKING:  # loaded when needed: the Zenoh processes start before numpy/fmpy load
+    from cosim.master import Master
+    from cosim.recorder import Recorder
 
 TRANSPORTS = ("inproc", "zenoh")
 DEFAULT_DEADLINE_S = 10.0
@@ -76,6 +78,9 @@ class RunResult:
     real_time_factor: float
     metrics: dict[str, float] = field(default_factory=dict)  # "component.metric" -> value
     realtime: dict[str, Any] | None = None
+    time_to_tick0_s: float | None = None  # from the clock's origin; None: tick 0 not reached
+    startup: dict[str, Any] = field(default_factory=dict)  # StartupClock marks and origin
+    live: dict[str, Any] | None = None  # {"run_id", "endpoint"} of the live view (zenoh)
 
     @property
     def signals(self) -> Path:
@@ -97,14 +102,48 @@ def prepare_run(scenario: Any) -> PreparedRun:
         UserError (FmuInterfaceError, ScenarioError, ...) naming the component.
     """
     _check_hosts(scenario)
-    fmus = [_plan_fmu(scenario, name, spec) for name, spec in scenario.fmu_components().items()]
+    fmus = plan_fmus(scenario)
+    return PreparedRun(scenario, fmus, plan_launches(scenario), _names(scenario))
+
+
+def plan_launches(scenario: Any, import_classes: bool = True) -> list[PythonComponentLaunch]:
+    """The Python components (sources included) to launch, in file order.
+
+    Args:
+        scenario: a validated `cosim.scenario.Scenario`.
+        import_classes: import every class here (checks it early). When False,
+            only the classes whose period the scenario leaves to the class's
+            `default_period` are imported; a component process then reports a
+            missing or bad class in its handshake, with the same message.
+    Raises:
+        UserError naming the component (class, period).
+    """
     launches = []
     for name, spec in scenario.python_components().items():
-        cls = import_component_class(spec.python, name)
-        period = scenario.period_ticks(name, getattr(cls, "default_period", None))
+        default = None
+        # sources are the platform's own classes, which declare no default period
+        if import_classes or (spec.period is None and name not in scenario.sources):
+            from cosim.inproc import import_component_class
+
+            cls = import_component_class(spec.python, name)
+            default = getattr(cls, "default_period", None)
+        period = scenario.period_ticks(name, default)
         launches.append(PythonComponentLaunch(name, spec.python, dict(spec.parameters), period))
-    names = [*scenario.components, *scenario.sources]
-    return PreparedRun(scenario, fmus, launches, names)
+    return launches
+
+
+def plan_fmus(scenario: Any) -> list[FmuPlan]:
+    """The FMU components, built if needed, described and parameter-checked.
+
+    Args:
+        scenario: a validated `cosim.scenario.Scenario`.
+    """
+    return [_plan_fmu(scenario, name, spec) for name, spec in scenario.fmu_components().items()]
+
+
+def _names(scenario: Any) -> list[str]:
+    """Every component name in declaration order (components, then sources)."""
+    return [*scenario.components, *scenario.sources]
 
 
 def _plan_fmu(scenario: Any, name: str, spec: Any) -> FmuPlan:
@@ -147,8 +186,13 @@ def _check_hosts(scenario: Any) -> None:
 def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  realtime: float | None = None, progress: bool = True,
                  deadline_s: float = DEFAULT_DEADLINE_S, place: Sequence[str] = (),
-                 deploy: Any = None) -> RunResult:
+                 deploy: Any = None, clock: StartupClock | None = None,
+                 on_live: Callable[[str, str], None] | None = None) -> RunResult:
     """Run a scenario and write its run folder.
+
+    Start-up is ordered so that tick 0 comes early: the component processes
+    (zenoh) are spawned first, the FMUs are built, described and loaded while
+    they start, and only then does the master wait for their handshakes.
 
     Args:
         scenario: a validated `cosim.scenario.Scenario` (overrides applied).
@@ -159,6 +203,10 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         deadline_s: per-tick deadline of remote components (zenoh).
         place: `--place COMPONENT=WORKER` values (override the scenario's `host:`).
         deploy: cosim.deploy.DeploySettings (endpoints, TLS, ACL), or None.
+        clock: start-up clock whose marks go into the manifest (`cosim run`
+            passes one that starts with the process); None: starts now.
+        on_live: called with (run_id, endpoint) as soon as the run can be
+            watched live (zenoh transport only), before tick 0.
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -169,82 +217,113 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         raise UserError(f"unknown transport {transport!r} (choose from {', '.join(TRANSPORTS)})")
     if realtime is not None and not realtime > 0:
         raise UserError(f"--realtime factor must be > 0, got {realtime!r}")
-    prepared = prepare_run(scenario)
+    clock = clock or StartupClock.from_now()
     from cosim.placement import resolve_placement
 
-    prepared.placement = resolve_placement(scenario, place)
-    prepared.deploy = deploy
-    if prepared.placement and transport != "zenoh":
+    placement = resolve_placement(scenario, place)
+    if placement and transport != "zenoh":
         raise UserError("components placed on workers need --transport zenoh: "
-                        + ", ".join(f"{c} on {w!r}" for c, w in prepared.placement.items()))
+                        + ", ".join(f"{c} on {w!r}" for c, w in placement.items()))
+    launches = plan_launches(scenario, import_classes=transport != "zenoh")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     run_id = uuid.uuid4().hex[:12]
     with contextlib.ExitStack() as stack:
-        hosted, publisher = _start_hosts(prepared, transport, run_id, deadline_s, stack)
-        return _execute(prepared, hosted, publisher, out, transport, run_id, realtime, progress)
+        remote = None
+        if transport == "zenoh":
+            remote = _spawn_remote(launches, run_id, deadline_s, placement, deploy, stack)
+            clock.mark("spawned")
+            if on_live is not None:
+                on_live(run_id, remote.endpoint)
+        prepared = PreparedRun(scenario, plan_fmus(scenario), launches, _names(scenario),
+                               placement, deploy)
+        hosted = _host_components(prepared, remote, clock)
+        return _execute(prepared, hosted, remote, out, transport, run_id, realtime, progress,
+                        clock)
 
 
-def _start_hosts(prepared: PreparedRun, transport: str, run_id: str, deadline_s: float,
-                 stack: contextlib.ExitStack) -> tuple[dict[str, Any], Any]:
-    """Host every component; returns (name -> HostedComponent in declaration order, publisher)."""
+def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s: float,
+                  placement: dict[str, str], deploy: Any, stack: contextlib.ExitStack) -> Any:
+    """Start the component processes (without waiting for them); closed with `stack`."""
+    try:
+        from cosim.zenoh_transport import ZenohComponents
+    except ImportError as exc:
+        raise UserError(f"the zenoh transport is not available ({exc}); "
+                        "use --transport inproc") from exc
+    if placement or deploy is not None:
+        from cosim.worker_client import DistributedComponents
+
+        remote = DistributedComponents(launches, run_id, deadline_s, placement=placement,
+                                       settings=deploy)
+    else:
+        remote = ZenohComponents(launches, run_id, deadline_s)
+    stack.callback(remote.close)
+    remote.spawn()
+    return remote
+
+
+def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock) -> dict[str, Any]:
+    """Host every component; name -> HostedComponent in declaration order."""
+    from cosim.fmu_component import FmuComponent
+
     hosted: dict[str, Any] = {}
     for plan in prepared.fmus:
         hosted[plan.name] = FmuComponent(plan.name, plan.path, plan.interface,
                                          plan.parameters, plan.period_ticks)
-    publisher = None
-    if transport == "zenoh":
-        try:
-            from cosim.zenoh_transport import ZenohComponents
-        except ImportError as exc:
-            raise UserError(f"the zenoh transport is not available ({exc}); "
-                            "use --transport inproc") from exc
-        if prepared.placement or prepared.deploy is not None:
-            from cosim.worker_client import DistributedComponents
-
-            publisher = stack.enter_context(DistributedComponents(
-                prepared.launches, run_id, deadline_s, placement=prepared.placement,
-                settings=prepared.deploy))
-        else:
-            publisher = stack.enter_context(ZenohComponents(prepared.launches, run_id, deadline_s))
-        hosted.update(publisher.components)
+    clock.mark("fmus_ready")
+    if remote is not None:
+        hosted.update(remote.wait_ready())
     else:
+        from cosim.inproc import InprocComponent
+
         hosted.update({l.name: InprocComponent(l) for l in prepared.launches})
-    return {name: hosted[name] for name in prepared.names}, publisher
+    clock.mark("components_ready")
+    return {name: hosted[name] for name in prepared.names}
 
 
 class _LivePublisher:
-    """Master observer publishing the scalar signal vector every tick (zenoh transport)."""
+    """Master observer publishing the scalar signal vector of every tick (zenoh
+    transport), building the vector only while a watcher listens."""
 
-    def __init__(self, transport: Any) -> None:
-        self.transport = transport
+    def __init__(self, live: Any) -> None:
+        self.live = live  # cosim.zenoh_transport.live.LivePublisher
 
     def begin(self, master: Master) -> None:
+        import numpy as np
+
         columns = master.layout.scalar_columns()
         self.names = [n for n, _ in columns]
         self.index = [i for _, i in columns]
+        self.vector = lambda values: np.array([values[i] for i in self.index], dtype=np.float64)
 
     def after_tick(self, tick: int, t: float, values: list[float], arrays: Any) -> None:
-        if getattr(self.transport, "live_matching", True):  # nobody listening: no cost
-            self.transport.publish(tick, t, self.names,
-                                   np.array([values[i] for i in self.index], dtype=np.float64))
+        if self.live.matching:  # a plain attribute: nobody listening costs one test
+            self.live.publish(tick, t, self.names, self.vector(values))
 
 
-def _execute(prepared: PreparedRun, hosted: dict[str, Any], publisher: Any, out: Path,
-             transport: str, run_id: str, realtime: float | None, progress: bool) -> RunResult:
+def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Path,
+             transport: str, run_id: str, realtime: float | None, progress: bool,
+             clock: StartupClock) -> RunResult:
     """Run the master over the hosted components and write the run folder."""
+    from cosim.manifest import base_manifest, finish_manifest
+    from cosim.recorder import write_json
+
     scenario = prepared.scenario
-    master, recorder, pacer, bar = _build_master(scenario, hosted, publisher, out,
+    master, recorder, pacer, bar = _build_master(scenario, hosted, remote, out,
                                                  realtime, progress)
     manifest = base_manifest(scenario, prepared, hosted, transport, run_id, master.order)
-    if publisher is not None:  # where a watcher connects to see the run live
-        manifest["live"] = {"run_id": run_id, "endpoint": getattr(publisher, "endpoint", None)}
-    manifest["hosts"].update(getattr(publisher, "hosts", {}))
+    live = None
+    if remote is not None:  # where a watcher connects to see the run live
+        live = {"run_id": run_id, "endpoint": remote.endpoint}
+        manifest["live"] = live
+        manifest["startup_processes_s"] = dict(getattr(remote, "process_ready_s", {}))
+    manifest["hosts"].update(getattr(remote, "hosts", {}))
+    manifest["startup"] = clock.as_dict()
     write_json(out / "manifest.json", manifest)
     failure: BaseException | None = None
     started = time.perf_counter()
     try:
-        master.run()
+        master.run(after_initialize=lambda: clock.mark("tick0"))
     except BaseException as exc:  # recorded below; bugs are re-raised after the files
         failure = exc
     finally:
@@ -261,16 +340,20 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], publisher: Any, out:
     result = RunResult(out, "failed" if errors else "ok", "; ".join(errors) or None, ticks,
                        ticks * scenario.tick, wall,
                        (ticks * scenario.tick / wall) if wall > 0 else float("inf"),
-                       metrics, pacer.stats() if pacer else None)
+                       metrics, pacer.stats() if pacer else None,
+                       clock.marks.get("tick0"), clock.as_dict(), live)
     write_json(out / "manifest.json", finish_manifest(manifest, result))
     if failure is not None and not isinstance(failure, (UserError, KeyboardInterrupt)):
         raise failure
     return result
 
 
-def _build_master(scenario: Any, hosted: dict[str, Any], publisher: Any, out: Path,
+def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
                   realtime: float | None, progress: bool) -> tuple[Master, Recorder, Any, Any]:
     """Wire the hosted components and attach the observers."""
+    from cosim.fmu_component import FmuComponent
+    from cosim.master import Master
+    from cosim.recorder import Recorder
     from cosim.wiring import resolve_wiring
 
     unsupported = {n: c.interface.unsupported for n, c in hosted.items()
@@ -278,11 +361,18 @@ def _build_master(scenario: Any, hosted: dict[str, Any], publisher: Any, out: Pa
     edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()},
                            unsupported)
     recorder = Recorder(out, scenario.record.include, scenario.record.exclude)
-    pacer = RealtimePacer(realtime, scenario.tick) if realtime is not None else None
-    bar = ProgressBar(scenario.total_ticks, scenario.tick) if progress else None
+    pacer = bar = None
+    if realtime is not None:
+        from cosim.pacing import RealtimePacer
+
+        pacer = RealtimePacer(realtime, scenario.tick)
+    if progress:
+        from cosim.progress import ProgressBar
+
+        bar = ProgressBar(scenario.total_ticks, scenario.tick)
     observers: list[Any] = [o for o in (recorder, pacer, bar) if o is not None]
-    if publisher is not None:
-        observers.append(_LivePublisher(publisher))
+    if getattr(remote, "live", None) is not None:
+        observers.append(_LivePublisher(remote.live))
     master = Master(hosted, edges, scenario.tick, scenario.total_ticks,
                     scenario.start_time, observers)
     return master, recorder, pacer, bar

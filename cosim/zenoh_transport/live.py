@@ -12,6 +12,7 @@ of the vector are answered by a queryable on
 
 from __future__ import annotations
 
+import contextlib
 import json
 from collections.abc import Iterator, Sequence
 
@@ -107,6 +108,19 @@ def watch(run_id: str = "*", endpoint: str = "tcp/127.0.0.1:7447"
         run_id: the run to watch, or "*" for any.
         endpoint: the master's listen endpoint, e.g. "tcp/127.0.0.1:7447".
     """
+    with contextlib.closing(watch_runs(run_id, endpoint)) as runs:  # session closed at once
+        for _, tick, t, values in runs:
+            yield tick, t, values
+
+
+def watch_runs(run_id: str = "*", endpoint: str = "tcp/127.0.0.1:7447"
+               ) -> Iterator[tuple[str, int, float, dict[str, float]]]:
+    """Like `watch`, with the run id of each tick first (for watching "*").
+
+    Args:
+        run_id: the run to watch, or "*" for any.
+        endpoint: the master's listen endpoint, e.g. "tcp/127.0.0.1:7447".
+    """
     if run_id != "*":
         config.check_key_chunk(run_id, "run_id")
     with zenoh.open(config.client_peer_config(endpoint)) as session:
@@ -127,4 +141,4 @@ def watch(run_id: str = "*", endpoint: str = "tcp/127.0.0.1:7447"
                 if names[run][0] != version:
                     continue  # names changed again since this sample: its names are gone
             values = np.frombuffer(data, dtype="<f8", offset=HEADER.size).tolist()
-            yield tick, t, dict(zip(names[run][1], values))
+            yield run, tick, t, dict(zip(names[run][1], values))
