@@ -22,9 +22,11 @@ import os
 import signal
 import socket
 import subprocess
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import zenoh
@@ -33,6 +35,7 @@ from cosim import worker_protocol as proto
 from cosim.deploy import (DeploySettings, check_endpoint, session_mode, zenoh_config,
                           zenoh_settings)
 from cosim.errors import UserError
+from cosim.fmu_remote import FMU_HOST_CLASS, store_fmu
 from cosim.inproc import PythonComponentLaunch
 from cosim.zenoh_transport.config import check_key_chunk
 from cosim.zenoh_transport.processes import ChildProcess
@@ -49,10 +52,11 @@ class Worker:
         name: the worker's name (a key chunk: letters, digits, '_', '.', '-').
         settings: endpoints, TLS and ACL of its session.
         allow: module prefixes of the component classes it may start.
+        allow_fmu: whether masters may send FMUs (native code) to run here.
     """
 
     def __init__(self, name: str, settings: DeploySettings | None = None,
-                 allow: Sequence[str] = proto.DEFAULT_ALLOW) -> None:
+                 allow: Sequence[str] = proto.DEFAULT_ALLOW, allow_fmu: bool = False) -> None:
         self.name = check_key_chunk(name, "worker name")
         self.settings = settings or DeploySettings()
         self.allow = tuple(allow) or proto.DEFAULT_ALLOW
@@ -60,6 +64,8 @@ class Worker:
         self._children: dict[tuple[str, str], ChildProcess] = {}
         self._lock = threading.Lock()
         self._session: Any = None
+        self.allow_fmu = bool(allow_fmu)
+        self._fmu_cache = Path(tempfile.gettempdir()) / f"cosim-worker-{self.name}-fmus"
         self.mode = session_mode(self.settings.listen, self.settings.connect)
 
     # ------------------------------------------------------------------ serving
@@ -140,13 +146,16 @@ class Worker:
         with self._lock:
             running = len(self._children)
         return {"ok": True, "name": self.name, "host": self.host, "pid": os.getpid(),
-                "allow": list(self.allow), "running": running, "listen": self.settings.listen}
+                "allow": list(self.allow), "allow_fmu": self.allow_fmu, "running": running, "listen": self.settings.listen}
 
     def _start(self, request: dict[str, Any]) -> int:
         run_id = check_key_chunk(request["run_id"], "run_id")
         component = check_key_chunk(request["component"], "component name")
         class_path = str(request["class_path"])
-        if not proto.module_allowed(class_path, self.allow):
+        parameters = dict(request.get("parameters", {}))
+        if class_path == FMU_HOST_CLASS:
+            parameters["fmu_file"] = str(self._receive_fmu(component, request.get("fmu")))
+        elif not proto.module_allowed(class_path, self.allow):
             raise UserError(f"worker {self.name!r} on host {self.host!r} refuses component "
                             f"{component!r}: module {class_path.partition(':')[0]!r} is not "
                             f"in its allow-list ({', '.join(self.allow)}); start the worker "
@@ -154,7 +163,7 @@ class Worker:
         connect = [check_endpoint(str(e)) for e in request["connect"]]
         if not connect:
             raise ValueError("start request without a master endpoint")
-        launch = PythonComponentLaunch(component, class_path, dict(request.get("parameters", {})),
+        launch = PythonComponentLaunch(component, class_path, parameters,
                                        int(request.get("period_ticks", 1)))
         # behind a router (client mode) the component falls back to the router when the
         # master's own endpoint cannot be reached from here
@@ -167,6 +176,16 @@ class Worker:
                                  ["--zenoh-config", json.dumps(session_conf)])
             self._children[(run_id, component)] = child
         return child.pid
+
+    def _receive_fmu(self, component: str, payload: Any) -> Path:
+        """Check and cache the FMU a start request carries; its path on this host."""
+        if not self.allow_fmu:
+            raise UserError(f"worker {self.name!r} on host {self.host!r} refuses FMU component "
+                            f"{component!r}: it does not run FMUs sent over the network; "
+                            f"start it with --allow-fmu to permit it")
+        if not isinstance(payload, dict):
+            raise ValueError(f"start request of FMU component {component!r} carries no FMU")
+        return store_fmu(payload, self._fmu_cache)
 
     def _stop(self, request: dict[str, Any]) -> int | None:
         key = (str(request["run_id"]), str(request["component"]))

@@ -41,6 +41,8 @@ def worker(
     allow: list[str] = typer.Option([], "--allow",
                                     help="allowed module prefix (default: controllers., "
                                          "cosim.sources), repeatable"),
+    allow_fmu: bool = typer.Option(False, "--allow-fmu",
+                                   help="run plant FMUs that masters send (native code)"),
     deploy: Optional[Path] = typer.Option(None, "--deploy", help="deployment settings YAML"),
 ) -> None:
     """Serve as a worker: start components on this host for masters that ask."""
@@ -49,11 +51,12 @@ def worker(
 
     try:
         settings = load_settings(deploy, listen, connect)
-        agent = Worker(name, settings, allow or worker_protocol.DEFAULT_ALLOW)
+        agent = Worker(name, settings, allow or worker_protocol.DEFAULT_ALLOW, allow_fmu)
     except (UserError, ValueError) as error:
         raise _error(UserError(str(error))) from None
     print(f"worker {agent.name!r} on {agent.host}: listen {settings.listen or '-'}, "
-          f"connect {settings.connect or '-'}, allow {', '.join(agent.allow)}", flush=True)
+          f"connect {settings.connect or '-'}, allow {', '.join(agent.allow)}"
+          f"{', FMUs' if agent.allow_fmu else ''}", flush=True)
     try:
         agent.serve(on_ready=lambda: print(f"worker {agent.name!r} ready", flush=True))
     except UserError as error:

@@ -27,6 +27,7 @@ import zenoh
 from cosim import worker_protocol as proto
 from cosim.deploy import DeploySettings, session_mode, zenoh_config, zenoh_settings
 from cosim.errors import ComponentFailure, UserError
+from cosim.fmu_remote import FMU_HOST_CLASS, fmu_payload
 from cosim.inproc import PythonComponentLaunch
 from cosim.zenoh_transport import config
 from cosim.zenoh_transport.host import ZenohComponents
@@ -157,6 +158,8 @@ class WorkerChild:
         request = {"op": "start", "run_id": hosted.run_id, "component": spec.name,
                    "class_path": spec.class_path, "parameters": _jsonable(spec),
                    "period_ticks": int(spec.period_ticks), "connect": [hosted.endpoint]}
+        if spec.class_path == FMU_HOST_CLASS:
+            request["fmu"] = fmu_payload(spec)  # the file travels; the worker checks its hash
         reply = ask_worker(hosted.session, worker, request, START_TIMEOUT_S)
         if reply is None:
             raise UserError(f"component {spec.name!r}: worker {worker!r} on host "
@@ -254,6 +257,14 @@ class DistributedComponents(ZenohComponents):
         except zenoh.ZError:
             # a peer behind a cut link cannot acknowledge the close: the session is gone anyway
             self.session = None
+
+    def wait_ready(self) -> dict[str, Any]:
+        """Handshake with every component; FMUs on workers keep their FMU step order."""
+        components = super().wait_ready()
+        for spec in self.specs:
+            if spec.class_path == FMU_HOST_CLASS:
+                components[spec.name].direct_feedthrough = False  # as a local FmuComponent
+        return components
 
     def _session_config(self, endpoint: str) -> zenoh.Config:
         listen = [endpoint, *self.settings.listen[1:]]
