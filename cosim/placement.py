@@ -4,8 +4,9 @@
     # {"controller": "w1", "planner": "w2"}: components not listed run locally
 
 The command line wins over the YAML; `--place NAME=local` brings a component
-back to the master's host. Only Python components (controllers, planner,
-sources) can be placed on workers; FMUs run in the master's process.
+back to the master's host. Python components (controllers, planner, sources)
+and FMU components can be placed on workers; an FMU then travels to its worker
+(see cosim.fmu_remote), which must be started with --allow-fmu.
 """
 
 from __future__ import annotations
@@ -50,8 +51,7 @@ def resolve_placement(scenario: Any, place: Sequence[str] = ()) -> dict[str, str
         scenario: a validated cosim.scenario.Scenario (its `host:` fields).
         place: `--place COMPONENT=WORKER` values (they override `host:`).
     Raises:
-        UserError naming an unknown component (with the known ones) or an FMU
-        placed on a worker.
+        UserError naming an unknown component (with the known ones) or a bad worker name.
     """
     fmus = dict(scenario.fmu_components())
     pythons = dict(scenario.python_components())
@@ -63,11 +63,6 @@ def resolve_placement(scenario: Any, place: Sequence[str] = ()) -> dict[str, str
                             f"{scenario.name!r} (components: {', '.join(sorted(known))})")
         wanted[name] = worker
     placement = {name: host for name, host in wanted.items() if host != LOCAL}
-    on_workers = sorted(name for name in placement if name in fmus)
-    if on_workers:
-        raise UserError("FMU components cannot be placed on a worker yet: "
-                        + ", ".join(f"{n} (host {placement[n]!r})" for n in on_workers)
-                        + "; they run in the master's process (use host: local)")
     for name, host in placement.items():
         try:
             check_key_chunk(host, "worker name")

@@ -225,6 +225,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         raise UserError("components placed on workers need --transport zenoh: "
                         + ", ".join(f"{c} on {w!r}" for c, w in placement.items()))
     launches = plan_launches(scenario, import_classes=transport != "zenoh")
+    launches += _placed_fmu_launches(scenario, placement)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     run_id = uuid.uuid4().hex[:12]
@@ -235,11 +236,22 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             clock.mark("spawned")
             if on_live is not None:
                 on_live(run_id, remote.endpoint)
-        prepared = PreparedRun(scenario, plan_fmus(scenario), launches, _names(scenario),
+        local_fmus = [p for p in plan_fmus(scenario) if p.name not in placement]
+        prepared = PreparedRun(scenario, local_fmus, launches, _names(scenario),
                                placement, deploy)
         hosted = _host_components(prepared, remote, clock)
         return _execute(prepared, hosted, remote, out, transport, run_id, realtime, progress,
                         clock)
+
+
+def _placed_fmu_launches(scenario: Any, placement: dict[str, str]) -> list[PythonComponentLaunch]:
+    """FMU components placed on workers, as launches of the remote FMU host."""
+    from cosim.fmu_remote import fmu_launch
+
+    specs = scenario.fmu_components()
+    plans = [_plan_fmu(scenario, name, spec) for name, spec in specs.items() if name in placement]
+    return [fmu_launch(p.name, p.path, dict(specs[p.name].variables), p.parameters,
+                       p.period_ticks) for p in plans]
 
 
 def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s: float,
@@ -316,7 +328,7 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
     if remote is not None:  # where a watcher connects to see the run live
         live = {"run_id": run_id, "endpoint": remote.endpoint}
         manifest["live"] = live
-        manifest["startup_processes_s"] = dict(getattr(remote, "process_ready_s", {}))
+        manifest["startup_processes_s"] = dict(getattr(remote, "process_startup_s", {}))
     manifest["hosts"].update(getattr(remote, "hosts", {}))
     manifest["startup"] = clock.as_dict()
     write_json(out / "manifest.json", manifest)

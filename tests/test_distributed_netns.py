@@ -61,7 +61,7 @@ class Host:
         self.name = name
         argv = [sys.executable, "-m", "cosim.cli", "worker", "--name", name,
                 "--allow", "tests.zenoh_components", "--allow", "cosim.sources",
-                "--allow", "controllers.", *extra]
+                "--allow", "controllers.", "--allow-fmu", *extra]
         self.proc = subprocess.Popen(lab.exec(host, argv), cwd=ROOT, env=_env(),
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                      start_new_session=True, text=True)
@@ -201,13 +201,17 @@ connections:
 """
 
 
-def test_real_controller_and_planner_on_two_hosts_match_local_run(lab, hosts, tmp_path):
+@pytest.mark.parametrize("placed", [("controller=wa", "planner=wb"),
+                                    ("vehicle=wa", "controller=wb")])
+def test_real_closed_loop_on_two_hosts_matches_local_run(lab, hosts, tmp_path, placed):
+    """The backstepping controller, the planner and the plant FMU (its file sent to
+    the worker) spread over hosts: signals and trajectory arrays bit-identical."""
     scenario = tmp_path / "closed_loop.yaml"
     scenario.write_text(CLOSED_LOOP)
     assert main(["run", str(scenario), "--out", str(tmp_path / "local"), "--transport",
                  "inproc", "--no-figures"]) == 0
-    code, err = finish(start_master(lab, scenario, tmp_path / "remote", "--place",
-                                    "controller=wa", "--place", "planner=wb"))
+    place = [arg for item in placed for arg in ("--place", item)]
+    code, err = finish(start_master(lab, scenario, tmp_path / "remote", *place))
     assert code == 0, err
     expected = (tmp_path / "local" / "signals.csv").read_bytes()
     assert (tmp_path / "remote" / "signals.csv").read_bytes() == expected
@@ -217,6 +221,10 @@ def test_real_controller_and_planner_on_two_hosts_match_local_run(lab, hosts, tm
     assert arrays, "the planner's trajectory windows are recorded as arrays"
     for path in arrays:
         assert (tmp_path / "remote" / path).read_bytes() == (tmp_path / "local" / path).read_bytes()
+    hosts_of = json.loads((tmp_path / "remote" / "manifest.json").read_text())["hosts"]
+    for item in placed:
+        component, worker = item.split("=")
+        assert hosts_of[component].startswith(f"{worker}@")
 
 
 def test_missing_worker_fails_before_tick_0(lab, hosts, tmp_path):
