@@ -16,6 +16,7 @@ from cosim.component import Port
 from cosim.errors import FmuInterfaceError
 from cosim.fmu_interface import ParameterInfo, check_parameters, describe_fmu
 from cosim.scenario import load_scenario
+from fmu_fixtures import built_fmu
 
 FMI2_VARIABLES = """
     <ScalarVariable name="steer" valueReference="1" causality="input" variability="continuous">
@@ -229,9 +230,9 @@ PAPER_TABLE_1 = {"m": 1500.0, "Iz": 2454.0, "Cf": 57500.0, "Cr": 57500.0, "lf": 
 
 @pytest.fixture(scope="module")
 def bicycle_fmus(tmp_path_factory) -> dict[int, Path]:
-    fmu_build = pytest.importorskip("cosim.fmu_build")
+    """Both Bicycle FMUs, from the session's build cache (built once per test session)."""
     out = tmp_path_factory.mktemp("bicycle")
-    return {version: fmu_build.build_fmu("Bicycle", version, out) for version in (2, 3)}
+    return {version: built_fmu(out, "Bicycle", version)[0] for version in (2, 3)}
 
 
 def test_built_bicycle_holds_the_plant_contract_in_both_fmi_versions(bicycle_fmus) -> None:

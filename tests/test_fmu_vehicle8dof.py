@@ -1,9 +1,10 @@
 """Physics tests of the Vehicle8DOF plant FMU (fmus/Vehicle8DOF), through fmpy.
 
 The FMU is built once per test session from its C sources with
-cosim.fmu_build and simulated with fmpy.simulate_fmu. Every expectation comes
-from an analytic result (linear bicycle steady-state gain, drag law, roll
-gradient, friction limit) or an exact symmetry, never from a recorded run.
+cosim.fmu_build (the cache of tests/fmu_fixtures.py) and simulated with
+fmpy.simulate_fmu. Every expectation comes from an analytic result (linear
+bicycle steady-state gain, drag law, roll gradient, friction limit) or an exact
+symmetry, never from a recorded run.
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import pytest
 fmpy = pytest.importorskip("fmpy")
 from fmpy.fmi1 import FMICallException  # noqa: E402
 
-from cosim.fmu_build import build_fmu  # noqa: E402
+from fmu_fixtures import built_fmu  # noqa: E402
 
 G = 9.81
 INPUTS = ("delta", "torque", "wind_fx", "wind_fy", "mu")
@@ -27,16 +28,14 @@ M_E = M + 4.0 * I_Y / R_W**2          # equivalent mass with the four wheel iner
 
 @pytest.fixture(scope="module")
 def fmu_dir(tmp_path_factory):
-    """Build the FMI 2.0 FMU once and unzip it (simulate_fmu then skips the unzip)."""
-    out = tmp_path_factory.mktemp("fmus")
-    return fmpy.extract(str(build_fmu("Vehicle8DOF", 2, out)))
+    """The unzipped FMI 2.0 FMU (simulate_fmu then skips the unzip), built once per session."""
+    return built_fmu(tmp_path_factory.mktemp("fmus"), "Vehicle8DOF", 2)[1]
 
 
 @pytest.fixture(scope="module")
 def bicycle_dir(tmp_path_factory):
-    """The paper's linear model, built the same way, for cross-checks."""
-    out = tmp_path_factory.mktemp("bicycle")
-    return fmpy.extract(str(build_fmu("Bicycle", 2, out)))
+    """The paper's linear model, from the same session cache, for cross-checks."""
+    return built_fmu(tmp_path_factory.mktemp("bicycle"), "Bicycle", 2)[1]
 
 
 def simulate(fmu_dir, stop_time, params=None, inputs=None, times=None):
