@@ -33,6 +33,7 @@ Obstacle and lane-change positions are reference arc lengths (first lap on a loo
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -254,7 +255,7 @@ class Planner(Component):
             if name not in inputs:
                 raise ComponentError(f"input {name!r} missing at t = {t}")
             value = float(inputs[name])
-            if not np.isfinite(value):
+            if not math.isfinite(value):
                 raise ComponentError(f"input {name!r} is {value} at t = {t}")
             out.append(value)
         return out[0], out[1], out[2], out[3]
