@@ -8,8 +8,9 @@ A request is a JSON object with "op":
     {"op": "info"}
         -> {"ok": true, "name", "host", "pid", "allow": [...], "running": n}
     {"op": "start", "run_id", "component", "class_path", "parameters",
-     "period_ticks", "connect": [master endpoints]}
+     "period_ticks", "connect": [master endpoints], "fmu": {"sha256", "data"}}
         -> {"ok": true, "pid"} or {"ok": false, "error": "..."}
+        ("fmu", base64 bytes of the file, only for cosim.fmu_remote:RemoteFmu)
     {"op": "stop", "run_id", "component"}
         -> {"ok": true, "exit_code"}
 A refused or failed request always answers {"ok": false, "error"} naming the worker.

@@ -103,3 +103,16 @@ def test_fmu_refusal_reaches_the_master(bicycle):
                 pass
     finally:
         agent.close()
+
+
+def test_fmu_component_can_be_placed(tmp_path):
+    from cosim.placement import resolve_placement
+    from cosim.scenario import load_scenario
+    path = tmp_path / "s.yaml"
+    path.write_text("name: p\nduration: 0.1\ntick: 0.01\ncomponents:\n"
+                    "  vehicle: {fmu: Bicycle, host: wf}\n"
+                    "  ctl: {python: tests.zenoh_components:Echo}\n"
+                    "connections:\n  - {from: vehicle.x, to: ctl.u}\n")
+    scenario = load_scenario(path)
+    assert resolve_placement(scenario) == {"vehicle": "wf"}
+    assert resolve_placement(scenario, ["vehicle=local", "ctl=w2"]) == {"ctl": "w2"}
