@@ -20,15 +20,8 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from cosim.cli_common import user_error_exit as _fail
 from cosim.errors import UserError
-
-EXIT_USER_ERROR = 2
-
-
-def _fail(error: UserError) -> typer.Exit:
-    Console(stderr=True, highlight=False, soft_wrap=True).print(
-        f"[red]error:[/red] {error}", markup=True)
-    return typer.Exit(EXIT_USER_ERROR)
 
 
 def plot(run_dir: Path = typer.Argument(..., help="run folder"),
