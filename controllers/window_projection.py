@@ -100,7 +100,9 @@ class PreparedWindow:
     the direction and the squared length, and `reach`, an upper bound of the
     polyline length from point 0 to point k (the chords' cumulative length,
     inflated against rounding): the exact nearest-chord search uses it to skip
-    chords that cannot be nearer than the best one found so far.
+    chords that cannot be nearer than the best one found so far. Four tracking
+    slots (see tracked_chord) serve points that move little between calls,
+    such as a controller's CG and preview point while the window is the same.
 
     Args:
         window: a valid trajectory window, or its fields as rows of a float64 matrix.
@@ -125,6 +127,8 @@ class PreparedWindow:
         # tracked_chord's state per slot: certificate (x0, y0, R, lo, hi) and last answer (-1: none)
         self.certs: list[tuple | None] = [None, None, None, None]
         self.best = [-1, -1, -1, -1]
+        # extra radius of a certificate: two mean chords (wider: more chords measured per call,
+        # narrower: more full searches)
         self.margin = 2.0 * self.reach[-1] / self.chords
 
     def chord_distance2(self, i: int, px: float, py: float) -> tuple[float, float]:
@@ -183,19 +187,16 @@ class PreparedWindow:
         self.certs[slot], self.best[slot] = (px, py, *cert), i
         return i, t
 
-    def _search(self, px: float, py: float, hint: int, margin: float) -> tuple[int, float, tuple]:
-        """Full exact search: (chord, chord parameter, (R, lo, hi)) with R = best distance + margin and
-        every chord outside lo..hi farther than R.
+    def _descend(self, px: float, py: float, hint: int, seen: list) -> tuple:
+        """From chord `hint`, step to the nearer neighbour while distances fall (ties to the left).
 
-        A descent from `hint` finds a near chord, then the chords on each side
-        are scanned, skipping runs whose polyline reach from an anchor point
-        proves them farther than the best distance so far plus `margin`.
+        Returns (chord, squared distance, chord parameter, lo, hi), lo..hi the chords
+        measured; each measured (chord, squared distance) is appended to `seen`.
         """
-        distance2 = self.chord_distance2
-        last = self.chords - 1
+        distance2, last = self.chord_distance2, self.chords - 1
         i = min(max(hint, 0), last)
         best_d, best_t = distance2(i, px, py)
-        seen = [(i, best_d)]
+        seen.append((i, best_d))
         lo = hi = i
         while lo > 0:
             d, t = distance2(lo - 1, px, py)
@@ -210,6 +211,18 @@ class PreparedWindow:
             seen.append((hi, d))
             if d < best_d:
                 i, best_d, best_t = hi, d, t
+        return i, best_d, best_t, lo, hi
+
+    def _search(self, px: float, py: float, hint: int, margin: float) -> tuple[int, float, tuple]:
+        """Full exact search: (chord, chord parameter, (R, lo, hi)) with R = best distance + margin and
+        every chord outside lo..hi farther than R.
+
+        A descent from `hint` finds a near chord, then the chords on each side
+        are scanned, skipping runs whose polyline reach from an anchor point
+        proves them farther than the best distance so far plus `margin`.
+        """
+        distance2, last, seen = self.chord_distance2, self.chords - 1, []
+        i, best_d, best_t, lo, hi = self._descend(px, py, hint, seen)
         xs, ys, reach, slack = self.x, self.y, self.reach, self.slack
         hypot, sqrt = math.hypot, math.sqrt
         limit = sqrt(best_d) + margin + slack
