@@ -18,6 +18,7 @@ from typing import Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from cosim.cli_common import user_error_exit as _fail
@@ -71,7 +72,7 @@ def _print_summary(result) -> None:
         console = Console(width=160)  # a pipe or a file: do not squeeze the table to 80 columns
     console.print(table)
     for failure in result.failures:
-        console.print(f"[yellow]failed:[/yellow] {failure.error}", markup=True, highlight=False)
+        console.print(f"[yellow]failed:[/yellow] {escape(failure.error)}", markup=True, highlight=False)
 
 
 def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),

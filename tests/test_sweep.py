@@ -13,7 +13,7 @@ import yaml
 
 from cosim.metrics_rundata import AnalysisError
 from cosim.sweep import (Vary, format_override, parse_vary, run_sweep, sample_points,
-                         summarize)
+                         summarize, summarize_samples)
 
 VARIES = [Vary("components.vehicle.uncertainty.m.scale", 0.7, 1.3),
           Vary("components.vehicle.parameters.mu", 0.3, 1.0),
@@ -204,3 +204,16 @@ def test_sweep_histograms_one_panel_per_metric(tmp_path):
     p95 = [line for line in visible[0].get_lines() if line.get_label() == "p95"][0]
     assert p95.get_xdata()[0] == summary["rms_yc"]["p95"]
     assert sum(patch.get_height() for patch in visible[2].patches) == 3
+
+
+def test_sweep_summary_prints_failures_verbatim(tmp_path, capsys):
+    from cosim.cli_analysis import _print_summary
+    from cosim.sweep import SampleResult, SweepResult
+
+    error = "sample 1: ComponentFailure: output 'ref_x' = [nan 1.0] at omega[fl]"
+    samples = [SampleResult(0, [1.0], "ok", {"rms_yc": 0.5}), SampleResult(1, [2.0], "failed", {}, error)]
+    result = SweepResult([parse_vary("a=0:3")], samples, summarize_samples(samples), tmp_path, [])
+    _print_summary(result)
+    out = capsys.readouterr().out
+    assert f"failed: {error}\n" in out
+    assert "sweep: 2 samples, 1 failed" in out
