@@ -7,6 +7,7 @@ Written once before tick 0 (status "running") and rewritten at the end (status
 from __future__ import annotations
 
 import datetime
+import functools
 import os
 import platform
 import socket
@@ -20,8 +21,13 @@ PACKAGES = ("cosim-vehicle", "fmpy", "eclipse-zenoh", "numpy", "pydantic", "pyya
             "typer", "rich")
 
 
+@functools.lru_cache(maxsize=1)
 def package_versions() -> dict[str, str | None]:
-    """Installed versions of the packages a run depends on (None: not installed)."""
+    """Installed versions of the packages a run depends on (None: not installed).
+
+    Cached: `cosim.run` calls it while the component processes start, so that
+    the manifest costs nothing after their handshake.
+    """
     versions: dict[str, str | None] = {}
     for name in PACKAGES:
         try:
@@ -62,7 +68,7 @@ def base_manifest(scenario: Any, prepared: Any, hosted: dict[str, Any], transpor
         "pids": {name: getattr(c, "pid", None) or os.getpid() for name, c in hosted.items()},
         "python": sys.version.split()[0],
         "platform": platform.platform(),
-        "packages": package_versions(),
+        "packages": dict(package_versions()),
     }
 
 

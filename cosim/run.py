@@ -284,6 +284,7 @@ def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock) ->
                                          plan.parameters, plan.period_ticks)
     clock.mark("fmus_ready")
     if remote is not None:
+        _preload()
         hosted.update(remote.wait_ready())
     else:
         from cosim.inproc import InprocComponent
@@ -291,6 +292,16 @@ def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock) ->
         hosted.update({l.name: InprocComponent(l) for l in prepared.launches})
     clock.mark("components_ready")
     return {name: hosted[name] for name in prepared.names}
+
+
+def _preload() -> None:
+    """Load what the run needs after the handshake, while the processes still start."""
+    import cosim.master  # noqa: F401
+    import cosim.recorder  # noqa: F401
+    import cosim.wiring  # noqa: F401
+    from cosim.manifest import package_versions
+
+    package_versions()
 
 
 class _LivePublisher:

@@ -104,8 +104,9 @@ class ZenohComponents:
         self._live: LivePublisher | None = None
         self._seq = 0
         self._failed: dict[str, ComponentFailure] = {}  # by component: raised again on reuse
-        # seconds from each process's start to its handshake answer (None: unknown)
-        self.process_ready_s: dict[str, float | None] = {}
+        # start-up marks of each process, seconds since its start: "imported" (runner
+        # modules loaded), "session" (Zenoh open), "built" (component), "ready" (handshake)
+        self.process_startup_s: dict[str, dict[str, float | None]] = {}
 
     # ----------------------------------------------------------------- lifecycle
     def __enter__(self) -> "ZenohComponents":
@@ -122,9 +123,6 @@ class ZenohComponents:
             self._open_session()
             for spec in self.specs:
                 self._children[spec.name] = self._spawn(spec)
-            from cosim.zenoh_transport.live import LivePublisher
-
-            self._live = LivePublisher(self.session, self.run_id)
         except BaseException:
             self.close()
             raise
@@ -133,8 +131,11 @@ class ZenohComponents:
         """Wait for every component's handshake (once); return `components`."""
         if self._components is None:
             try:
+                from cosim.zenoh_transport.live import LivePublisher
                 from cosim.zenoh_transport.watchdog import Watchdog
 
+                if self._live is None:
+                    self._live = LivePublisher(self.session, self.run_id)
                 self._components = self._handshake()
                 self._watchdog = Watchdog(self.session, self.run_id, self._children,
                                           self.deadline_s)
@@ -243,7 +244,7 @@ class ZenohComponents:
                         self, pending.pop(name), ports_from_json(document["inputs"]),
                         ports_from_json(document["outputs"]), int(document["pid"]),
                         channels[name])
-                    self.process_ready_s[name] = document.get("age_s")
+                    self.process_startup_s[name] = dict(document.get("startup_s") or {})
             if not got:
                 time.sleep(0.002)
 
@@ -332,7 +333,7 @@ class ZenohComponents:
     # ----------------------------------------------------------------- live view
     @property
     def live(self) -> "LivePublisher | None":
-        """The run's live publisher (after `spawn`): `live.matching` is a plain
+        """The run's live publisher (after `wait_ready`): `live.matching` is a plain
         attribute, cheap enough to test every tick before building a vector."""
         return self._live
 

@@ -59,8 +59,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 class _Server:
     """Answers the master's requests for one component."""
 
-    def __init__(self, launch: PythonComponentLaunch) -> None:
+    def __init__(self, launch: PythonComponentLaunch, ages: dict[str, float | None]) -> None:
         self.launch = launch
+        self.ages = ages  # start-up marks: seconds since this process started
         self.component: Component | None = None
         self.build_error = ""
         try:
@@ -106,7 +107,7 @@ class _Server:
         return encode_json(Kind.PORTS, seq, -1, 0.0, {
             "inputs": ports_to_json(self.component.inputs),
             "outputs": ports_to_json(self.component.outputs), "pid": os.getpid(),
-            "age_s": process_age_s()})
+            "startup_s": {**self.ages, "ready": process_age_s()}})
 
     def _step(self, kind: int, seq: int, tick: int, t: float, data: bytes) -> bytes:
         assert self.component is not None
@@ -151,6 +152,7 @@ def _exit_when_master_gone(session: zenoh.Session, run_id: str) -> None:
 
 def serve(args: argparse.Namespace) -> int:
     """Open the session, build the component, answer requests until STOP."""
+    ages = {"imported": process_age_s()}
     launch = PythonComponentLaunch(name=args.name, class_path=args.class_path,
                                    parameters=json.loads(args.params),
                                    period_ticks=args.period_ticks)
@@ -161,11 +163,14 @@ def serve(args: argparse.Namespace) -> int:
     with zenoh.open(conf) as session:
         _exit_when_master_gone(session, args.run_id)
         token = session.liveliness().declare_token(config.alive_key(args.run_id, args.name))
+        ages["session"] = process_age_s()
         # Build first, then subscribe: the master's HELLO retries sent while a slow
         # constructor runs are not delivered, so they cannot fill the request queue.
-        server = _Server(launch)
+        server = _Server(launch, ages)
+        ages["built"] = process_age_s()
         requests = session.declare_subscriber(config.request_key(args.run_id, args.name))
-        publisher = session.declare_publisher(config.reply_key(args.run_id, args.name), express=True)
+        publisher = session.declare_publisher(config.reply_key(args.run_id, args.name),
+                                              express=True)
         done = False
         while not done:
             data = requests.recv().payload.to_bytes()

@@ -1,0 +1,109 @@
+"""Benchmark: time from launching `cosim run` to tick 0, over Zenoh and in-process.
+
+Runs the real command line (`cosim run SCENARIO --no-figures`) on a real
+scenario, cut to ten ticks with `--set duration=...`, and reads
+`time_to_tick0_s` and the start-up marks from each run's manifest.json (time
+zero: the start of the `cosim run` process, from /proc, 10 ms resolution).
+Transports alternate run by run, so machine load weighs on both alike. Also
+measures, as floors for context, a bare interpreter start and `import numpy`
+(which every component process needs). DESIGN.md target: under 1 s over Zenoh.
+
+    .venv/bin/python benchmarks/bench_startup.py [--scenario scenarios/lane_change.yaml]
+        [--repeat 5] [--transports zenoh,inproc]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+TARGET_S = 1.0
+MARKS = ("scenario_loaded", "spawned", "fmus_ready", "components_ready", "tick0")
+
+
+def cosim_command() -> list[str]:
+    """The `cosim` console script of this interpreter's environment, else `python -m`."""
+    script = Path(sys.executable).parent / "cosim"
+    return [str(script)] if script.is_file() else [sys.executable, "-m", "cosim.cli"]
+
+
+def run_once(scenario: Path, transport: str, out: Path, duration: float) -> dict:
+    """One `cosim run`; returns its manifest (raises if the run failed)."""
+    cmd = [*cosim_command(), "run", str(scenario), "--out", str(out), "--no-figures",
+           "--transport", transport, "--set", f"duration={duration!r}"]
+    done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed ({done.returncode}):\n{done.stderr}")
+    return json.loads((out / "manifest.json").read_text())
+
+
+def floor_s(code: str, repeat: int) -> float:
+    """Median wall time of `python -c code`, s."""
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-c", code], check=True)
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def print_report(results: dict[str, list[dict]], floors: dict[str, float]) -> None:
+    """Medians per transport vs the target, and the start-up marks of the median run."""
+    print(f"\nload average at the end: {os.getloadavg()[0]:.2f} (2-core machine; "
+          f"figures scale with load)")
+    for name, value in floors.items():
+        print(f"floor: {name:<28} {value:6.3f} s")
+    print(f"\n{'transport':<10} {'median':>8} {'min':>8} {'max':>8}   target {TARGET_S:.1f} s")
+    for transport, manifests in results.items():
+        times = [m["time_to_tick0_s"] for m in manifests]
+        verdict = "met" if statistics.median(times) < TARGET_S else "NOT met"
+        print(f"{transport:<10} {statistics.median(times):8.3f} {min(times):8.3f} "
+              f"{max(times):8.3f}   {verdict}")
+    for transport, manifests in results.items():
+        ordered = sorted(manifests, key=lambda m: m["time_to_tick0_s"])
+        median = ordered[len(ordered) // 2]
+        marks = median["startup"]
+        line = "  ".join(f"{k}={marks[k + '_s']:.3f}" for k in MARKS if k + "_s" in marks)
+        print(f"\n{transport} (median run), s since process start: {line}")
+        for name, ages in (median.get("startup_processes_s") or {}).items():
+            print(f"  process {name}, s since its own start: "
+                  + "  ".join(f"{k}={v:.3f}" for k, v in ages.items() if v is not None))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenario", type=Path, default=ROOT / "scenarios" / "lane_change.yaml")
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--transports", default="zenoh,inproc")
+    args = parser.parse_args()
+    transports = args.transports.split(",")
+    duration = 10 * float(yaml.safe_load(args.scenario.read_text())["tick"])
+    print(f"scenario {args.scenario.name}, {args.repeat} runs per transport, "
+          f"duration cut to {duration:g} s")
+    results: dict[str, list[dict]] = {t: [] for t in transports}
+    with tempfile.TemporaryDirectory(prefix="bench-startup-") as tmp:
+        run_once(args.scenario, "inproc", Path(tmp) / "warm", duration)  # builds FMUs, .pyc
+        for i in range(args.repeat):
+            for transport in transports:
+                manifest = run_once(args.scenario, transport, Path(tmp) / f"{transport}{i}",
+                                    duration)
+                results[transport].append(manifest)
+                print(f"run {i + 1} {transport:<7} time to tick 0: "
+                      f"{manifest['time_to_tick0_s']:.3f} s", flush=True)
+    floors = {"python -c pass": floor_s("pass", 3),
+              "python -c 'import numpy'": floor_s("import numpy", 3)}
+    print_report(results, floors)
+
+
+if __name__ == "__main__":
+    main()
