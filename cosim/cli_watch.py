@@ -20,6 +20,7 @@ from __future__ import annotations
 import fnmatch
 import json
 import sys
+import time
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Optional
@@ -29,6 +30,7 @@ import typer
 from cosim.errors import UserError
 
 EXIT_USER_ERROR = 2
+MANIFEST_WAIT_S = 10.0  # a run folder named just after `cosim run` printed it
 
 
 def select_names(names: Iterable[str], patterns: Sequence[str]) -> list[str]:
@@ -59,18 +61,24 @@ def format_line(tick: int, t: float, values: dict[str, float], names: Sequence[s
     return "  ".join(([f"[{run_id}]"] if run_id else []) + fields)
 
 
-def resolve_target(target: str, connect: str | None) -> tuple[str, str]:
+def resolve_target(target: str, connect: str | None,
+                   wait_s: float = 0.0) -> tuple[str, str]:
     """(run id, endpoint) from a run id, "*" or a run folder, and `--connect`.
 
     Args:
         target: a run id, "*" (every run) or a run folder holding manifest.json.
         connect: the endpoint given on the command line, or None.
+        wait_s: how long to wait for the folder's manifest to appear (a run
+            writes it just before tick 0, after printing its folder).
     Raises:
         UserError when the endpoint is unknown or the folder's run has ended.
     """
     folder = Path(target)
     if folder.is_dir():
         manifest_path = folder / "manifest.json"
+        end = time.monotonic() + wait_s
+        while not manifest_path.exists() and time.monotonic() < end:
+            time.sleep(0.05)
         try:
             manifest = json.loads(manifest_path.read_text())
         except (OSError, ValueError) as exc:
@@ -141,7 +149,7 @@ def watch(
     try:
         if every < 1 or count < 0:
             raise UserError(f"--every must be >= 1 and --count >= 0, got {every} and {count}")
-        run_id, endpoint = resolve_target(target, connect)
+        run_id, endpoint = resolve_target(target, connect, MANIFEST_WAIT_S)
         print(f"watching run {run_id} at {endpoint} (Ctrl-C to stop)", file=sys.stderr,
               flush=True)
         for line in watch_lines(run_id, endpoint, signals, every, count):

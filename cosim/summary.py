@@ -70,7 +70,8 @@ def run_rows(result: Any) -> list[tuple[str, str]]:
     Args:
         result: a cosim.run.RunResult.
     """
-    rows = [("ticks", str(result.ticks)), ("sim time", f"{result.sim_time_s:.6g} s"),
+    rows = [("folder", str(result.out_dir)), ("ticks", str(result.ticks)),
+            ("sim time", f"{result.sim_time_s:.6g} s"),
             ("wall time", f"{result.wall_time_s:.4g} s"),
             ("real-time factor", f"{result.real_time_factor:.4g}")]
     tick0 = getattr(result, "time_to_tick0_s", None)
@@ -89,7 +90,7 @@ def print_summary(result: Any, console: Console | None = None) -> None:
         console: where to print (default: stdout).
     """
     console = console or Console(highlight=False)
-    table = Table(title=f"run {result.status}: {result.out_dir}", show_header=False)
+    table = Table(title=f"run {result.status}", show_header=False)
     table.add_column("quantity")
     table.add_column("value", justify="right")
     for row in run_rows(result):
