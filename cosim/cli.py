@@ -1,4 +1,4 @@
-"""The `cosim` command line: run, validate, schema, build-fmus (and, registered
+"""The `cosim` command line: run, validate, schema, build-fmus, recover (and, registered
 from their modules: watch, worker/workers/router, plot/compare/sweep).
 
 Every user error (bad scenario, FMU, wiring, parameters) prints one clear
@@ -196,6 +196,21 @@ def build_fmus(out: Optional[Path] = typer.Option(None, "--out", help="output fo
         raise _fail(UserError(str(error))) from None
     for path in paths:
         print(path)
+
+
+@app.command()
+def recover(run_dir: Path = typer.Argument(..., help="run folder of a master that was killed"),
+            keep_spool: bool = typer.Option(False, "--keep-spool", help="keep the *.f64 spools")) -> None:
+    """Rebuild a run folder's CSV files from its recording spools."""
+    from cosim.recorder import recover as recover_csv
+
+    try:
+        done = recover_csv(run_dir, keep_spool=keep_spool)
+    except UserError as error:
+        raise _fail(error) from None
+    for path, rows, ignored in done:
+        note = f" (ignored {ignored} bytes of a partial last row)" if ignored else ""
+        print(f"{path}: {rows} rows{note}")
 
 
 from cosim.worker_cli import register as _register_distributed  # noqa: E402

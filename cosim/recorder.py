@@ -4,10 +4,20 @@
 `component.signal`, one row per master tick (0 = after initialization). Array
 signals go to `arrays/<component>.<signal>.csv`, one row per step of their
 component. Floats are written with `repr`, the shortest text that reads back to
-the identical float64, so a reload is bit-identical. Rows are written whole and
-flushed at least every `flush_interval` seconds of wall time and on close, so
-a crash loses nothing before the last flushed tick and the partial file is a
-valid CSV. `write_json` writes the manifest and metrics atomically.
+the identical float64, so a reload is bit-identical. `write_json` writes the
+manifest and metrics atomically.
+
+Text formatting is too slow for the master's loop, so the loop only appends
+each row's raw float64 values to a binary spool per table (`signals.f64`,
+`arrays/<name>.f64`, each with a JSON header `*.f64.json` naming its columns,
+see `cosim.csv_writer`), written to the OS at least every `flush_interval`
+seconds of wall time. A writer process started at the first flush tails the
+spools and appends the CSV text on the other core; `close` (which the master's
+caller runs in `finally`) lets it finish, checks its row counts (rebuilding
+the CSV in this process if the writer failed) and removes the spools unless
+`keep_spool`. So a failing component loses nothing before its tick; if the
+master process itself is killed, the writer still converts what is on disk,
+and `recover` (`cosim recover RUN_DIR`) rebuilds every CSV from the spools.
 """
 
 from __future__ import annotations
@@ -17,15 +27,24 @@ import json
 import math
 import operator
 import os
+import struct
+import subprocess
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 
+from cosim.csv_writer import (HEADER_SUFFIX, SPOOL_SUFFIX, SpoolError, SpoolHeader,
+                              read_header, rebuild_csv, write_header)
+from cosim.errors import UserError
+
 SIGNALS_FILE = "signals.csv"
 ARRAYS_DIR = "arrays"
+WRITER_SCRIPT = Path(__file__).with_name("csv_writer.py")
+WRITER_STALL_S = 10.0  # a writer that converts nothing for this long is given up
 
 
 def selected(name: str, include: Sequence[str], exclude: Sequence[str]) -> bool:
@@ -39,15 +58,47 @@ def selected(name: str, include: Sequence[str], exclude: Sequence[str]) -> bool:
             and not any(fnmatch.fnmatchcase(name, p) for p in exclude))
 
 
-class _ArrayFile:
-    """One array signal's CSV: rows at the ticks its component steps."""
+class _Table:
+    """One recorded table: its CSV header line, its spool file and the bytes not yet written.
 
-    def __init__(self, path: Path, name: str, offset: int, size: int, period: int) -> None:
-        self.offset, self.size, self.period = offset, size, period
-        self.file: IO[str] = open(path, "w", encoding="ascii", newline="\n")
-        self.file.write(",".join(["time"] + [f"{name}[{i}]" for i in range(size)]) + "\n")
-        self.file.flush()
-        self.pending: list[str] = []
+    Args:
+        folder: where the CSV, the spool and its header go.
+        stem: file name without extension.
+        columns: column names, "time" first.
+        offset / size / period: for an array signal, its slice of the master's
+            array buffer and its component's period in ticks.
+    """
+
+    def __init__(self, folder: Path, stem: str, columns: list[str],
+                 offset: int = 0, size: int = 0, period: int = 1) -> None:
+        self.offset, self.stop, self.period = offset, offset + size, period
+        spool = folder / f"{stem}{SPOOL_SUFFIX}"
+        self.fd = os.open(spool, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        self.header: SpoolHeader = write_header(spool, f"{stem}.csv", columns)
+        with open(self.header.csv_path, "w", encoding="ascii", newline="\n") as csv:
+            csv.write(self.header.csv_header_line())
+        self.pending = bytearray()
+        self.rows = 0
+
+    def write_pending(self) -> None:
+        """Hand the queued bytes to the OS (whole rows, unless the process dies mid-way)."""
+        with memoryview(self.pending) as view:
+            done = 0
+            while done < len(view):
+                done += os.write(self.fd, view[done:])
+        self.pending.clear()
+
+    def close(self) -> None:
+        """Write what is queued and close the spool (safe to call twice)."""
+        if self.fd >= 0:
+            self.write_pending()
+            os.close(self.fd)
+            self.fd = -1
+
+    def remove_spool(self) -> None:
+        """Delete the spool and its header."""
+        self.header.spool_path.unlink(missing_ok=True)
+        self.header.path.unlink(missing_ok=True)
 
 
 class Recorder:
@@ -56,21 +107,28 @@ class Recorder:
     Args:
         out_dir: the run folder (created when missing).
         include / exclude: fnmatch globs over "component.signal".
-        flush_interval: maximum wall time in seconds between two flushes.
+        flush_interval: maximum wall time in seconds between two writes of the
+            spools to the OS.
+        keep_spool: keep the binary spools after the CSV files are complete.
     """
 
     def __init__(self, out_dir: str | Path, include: Sequence[str] = ("*",),
-                 exclude: Sequence[str] = (), flush_interval: float = 0.5) -> None:
+                 exclude: Sequence[str] = (), flush_interval: float = 0.5,
+                 keep_spool: bool = False) -> None:
         self.out_dir = Path(out_dir)
         self.include, self.exclude = list(include), list(exclude)
         self.flush_interval = flush_interval
+        self.keep_spool = keep_spool
         self.columns: list[str] = []
-        self._pick: Any = lambda values: ()
-        self._signals: IO[str] | None = None
-        self._pending: list[str] = []
-        self._arrays: list[_ArrayFile] = []
-        self._last_flush = time.monotonic()
         self.rows = 0
+        self.writer_pid: int | None = None  # the CSV writer process, once started
+        self.writer_problem: str | None = None  # why the CSV was rebuilt here, if it was
+        self._tables: list[_Table] = []
+        self._array_groups: list[tuple[int, list[_Table]]] = []
+        self._writer: subprocess.Popen[bytes] | None = None
+        self._writer_tried = False
+        self._closed = False
+        self._last_flush = time.monotonic()
 
     @property
     def signals_path(self) -> Path:
@@ -78,57 +136,169 @@ class Recorder:
         return self.out_dir / SIGNALS_FILE
 
     def begin(self, master: Any) -> None:
-        """Choose the columns from the master's layout and write the headers."""
+        """Choose the columns from the master's layout; write the CSV and spool headers."""
         self.out_dir.mkdir(parents=True, exist_ok=True)
         layout = master.layout
         chosen = [(n, i) for n, i in layout.scalar_columns()
                   if selected(n, self.include, self.exclude)]
         self.columns = [n for n, _ in chosen]
         index = [i for _, i in chosen]
-        self._pick = (lambda values: [values[i] for i in index]) if len(index) < 2 \
-            else operator.itemgetter(*index)
-        self._signals = open(self.signals_path, "w", encoding="ascii", newline="\n")
-        self._signals.write(",".join(["time"] + self.columns) + "\n")
-        self._signals.flush()
+        self._pick = operator.itemgetter(*index) if len(index) > 1 \
+            else (lambda values: [values[i] for i in index])
+        self._pack = struct.Struct(f"={1 + len(index)}d").pack
+        self._pack_time = struct.Struct("=d").pack
+        self._signals = _Table(self.out_dir, SIGNALS_FILE[:-len(".csv")], ["time"] + self.columns)
+        self._tables = [self._signals]
+        groups: dict[int, list[_Table]] = {}
         for comp, signal, offset, size in layout.array_signals():
             name = f"{comp}.{signal}"
             if selected(name, self.include, self.exclude):
                 (self.out_dir / ARRAYS_DIR).mkdir(exist_ok=True)
                 period = master.components[comp].period_ticks
-                self._arrays.append(_ArrayFile(self.out_dir / ARRAYS_DIR / f"{name}.csv",
-                                               name, offset, size, period))
+                table = _Table(self.out_dir / ARRAYS_DIR, name,
+                               ["time"] + [f"{name}[{i}]" for i in range(size)], offset, size, period)
+                self._tables.append(table)
+                groups.setdefault(period, []).append(table)
+        self._array_groups = sorted(groups.items())
+        self._arrays_seen: Any = None
+        self._last_flush = time.monotonic()
 
     def after_tick(self, tick: int, t: float, values: list[float], arrays: np.ndarray) -> None:
-        """Queue the row of this tick; flush when the interval has passed."""
-        stamp = repr(t)
-        self._pending.append(",".join([stamp, *map(repr, self._pick(values))]) + "\n")
-        for array in self._arrays:
-            if tick % array.period == 0:
-                row = arrays[array.offset:array.offset + array.size].tolist()
-                array.pending.append(",".join([stamp, *map(repr, row)]) + "\n")
+        """Queue this tick's raw rows; write them to the spools when the interval has passed."""
+        signals = self._signals
+        signals.pending += self._pack(t, *self._pick(values))
+        signals.rows += 1
+        for period, tables in self._array_groups:
+            if tick % period == 0:
+                if arrays is not self._arrays_seen:  # a memoryview made once, not per tick
+                    self._arrays_seen, self._arrays_view = arrays, memoryview(arrays).cast("B")
+                stamp = self._pack_time(t)
+                for table in tables:
+                    table.pending += stamp
+                    table.pending += self._arrays_view[table.offset * 8:table.stop * 8]
+                    table.rows += 1
         self.rows += 1
         if time.monotonic() - self._last_flush >= self.flush_interval:
             self.flush()
+            if not self._writer_tried:
+                self._start_writer()
 
     def flush(self) -> None:
-        """Write the queued complete rows and push them to the OS."""
-        if self._signals is not None and self._pending:
-            self._signals.write("".join(self._pending))
-            self._signals.flush()
-            self._pending.clear()
-        for array in self._arrays:
-            if array.pending:
-                array.file.write("".join(array.pending))
-                array.file.flush()
-                array.pending.clear()
+        """Write the queued complete rows to the spools (the OS has them from here on)."""
+        for table in self._tables:
+            if table.pending and table.fd >= 0:
+                table.write_pending()
         self._last_flush = time.monotonic()
 
     def close(self) -> None:
-        """Flush and close every file (safe to call twice)."""
-        self.flush()
-        for handle in [self._signals, *(a.file for a in self._arrays)]:
-            if handle is not None and not handle.closed:
-                handle.close()
+        """Complete every CSV, then remove the spools unless kept (safe to call twice).
+
+        The writer process converts what it has not yet converted; if it fails
+        or its row counts differ from the rows spooled, the CSV files are
+        rebuilt from the spools in this process.
+        """
+        if self._closed:
+            return
+        self._closed = True
+        for table in self._tables:
+            table.close()
+        if self._writer is not None:
+            self.writer_problem = self._finish_writer()
+        if self._writer is None or self.writer_problem is not None:
+            if self.writer_problem is not None:
+                print(f"recorder: {self.writer_problem}; CSV files rebuilt from the spools",
+                      file=sys.stderr)
+            for table in self._tables:
+                rebuild_csv(table.header)
+        if not self.keep_spool:
+            for table in self._tables:
+                table.remove_spool()
+
+    def _start_writer(self) -> None:
+        """Start the CSV writer process on the spools (the CSV is built at close if it fails)."""
+        self._writer_tried = True
+        args = [sys.executable, "-S", str(WRITER_SCRIPT)] + [str(t.header.path) for t in self._tables]
+        try:
+            self._writer = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                            stderr=subprocess.PIPE, start_new_session=True)
+        except OSError as exc:
+            self.writer_problem = f"CSV writer process not started: {exc}"
+            return
+        self.writer_pid = self._writer.pid
+
+    def _finish_writer(self) -> str | None:
+        """Tell the writer the spools are complete and wait; why its CSV is not trusted, or None."""
+        writer = self._writer
+        assert writer is not None and writer.stdin is not None
+        try:
+            writer.stdin.write(b"close\n")
+            writer.stdin.close()
+        except OSError:
+            pass  # it died: its exit status says so below
+        writer.stdin = None  # closed: communicate() must not flush it
+        if not _wait_while_progressing(writer, [t.header.csv_path for t in self._tables]):
+            return f"CSV writer process made no progress for {WRITER_STALL_S:g} s"
+        out, err = writer.communicate()
+        if writer.returncode != 0:
+            last = err.decode(errors="replace").strip().splitlines()[-1:] or ["no message"]
+            return f"CSV writer process exited with status {writer.returncode}: {last[0]}"
+        try:
+            counted = json.loads(out)["rows"]
+        except (ValueError, KeyError, TypeError):
+            return f"CSV writer process gave an unreadable report: {out[:200]!r}"
+        for table in self._tables:
+            if counted.get(str(table.header.path)) != table.rows:
+                return (f"CSV writer process wrote {counted.get(str(table.header.path))} rows "
+                        f"to {table.header.csv_path}, expected {table.rows}")
+        return None
+
+
+def _wait_while_progressing(process: subprocess.Popen[bytes], outputs: list[Path]) -> bool:
+    """Wait for a process that keeps growing `outputs`; kill it after a stall (False)."""
+    last_size, last_change = -1, time.monotonic()
+    while True:
+        try:
+            process.wait(timeout=0.5)
+            return True
+        except subprocess.TimeoutExpired:
+            size = sum(p.stat().st_size for p in outputs if p.exists())
+            if size != last_size:
+                last_size, last_change = size, time.monotonic()
+            elif time.monotonic() - last_change > WRITER_STALL_S:
+                process.kill()
+                process.communicate()
+                return False
+
+
+def recover(run_dir: str | Path, keep_spool: bool = False) -> list[tuple[Path, int, int]]:
+    """Rebuild a run folder's CSV files from its spools (after the master was killed).
+
+    Args:
+        run_dir: the run folder.
+        keep_spool: keep the spools after the CSV files are written.
+    Returns:
+        (CSV path, rows written, bytes of a partial last row ignored) per table.
+    Raises:
+        UserError when the folder holds no spool or a spool cannot be read.
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise UserError(f"{run_dir}: not a folder")
+    paths = sorted(run_dir.glob(f"*{HEADER_SUFFIX}")) + sorted(
+        (run_dir / ARRAYS_DIR).glob(f"*{HEADER_SUFFIX}"))
+    if not paths:
+        raise UserError(f"{run_dir}: no recording spool (*{SPOOL_SUFFIX} with its "
+                        f"*{HEADER_SUFFIX} header) to recover from")
+    try:
+        headers = [read_header(p) for p in paths]
+        done = [(h.csv_path, *rebuild_csv(h)) for h in headers]
+    except SpoolError as exc:
+        raise UserError(str(exc)) from None
+    if not keep_spool:
+        for header in headers:
+            header.spool_path.unlink(missing_ok=True)
+            header.path.unlink(missing_ok=True)
+    return done
 
 
 def read_signals(path: str | Path) -> tuple[list[str], np.ndarray]:

@@ -1,6 +1,16 @@
-"""Recorder: bit-identical round trip, array files, partial files after a failure."""
+"""Recorder: bit-identical round trip, array files, partial files after a failure,
+the spool and its writer process (CSV bytes equal to the direct repr formatting),
+recovery after the master process is killed."""
 
 from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,7 +20,9 @@ from cosim.component import Component, Port
 from cosim.errors import ComponentFailure
 from cosim.inproc import InprocComponent, PythonComponentLaunch
 from cosim.master import Master
-from cosim.recorder import Recorder, read_signals, selected, write_json
+from cosim.csv_writer import format_rows
+from cosim.errors import UserError
+from cosim.recorder import Recorder, read_signals, recover, selected, write_json
 
 
 class Noisy(Component):
@@ -62,17 +74,46 @@ def _edge(src, sp, dst, dp):
     return SimpleNamespace(src=src, src_port=sp, dst=dst, dst_port=dp, delay=0)
 
 
-def _run(tmp_path, ticks=20, fail_at=-1.0, include=("*",), exclude=()):
+def _run(tmp_path, ticks=20, fail_at=-1.0, include=("*",), exclude=(), extra=(), **options):
     comps = {"noisy": _comp("noisy", Noisy, seed=7, fail_at=fail_at), "echo": _comp("echo", Echo, 3)}
-    recorder = Recorder(tmp_path, include, exclude)
+    recorder = Recorder(tmp_path, include, exclude, **options)
     snaps = Snapshots()
+    snaps.recorder = recorder
     master = Master(comps, [_edge("noisy", "u", "echo", "u")], tick=0.01, total_ticks=ticks,
-                    observers=[recorder, snaps])
+                    observers=[recorder, snaps, *extra])
     try:
         master.run()
     finally:
         recorder.close()
     return master, snaps
+
+
+def legacy_csv(columns, rows):
+    """The CSV as the first recorder formatted it in the master's loop (the reference).
+
+    Args:
+        columns: column names, "time" first.
+        rows: (t, list of Python floats) per row.
+    """
+    lines = [",".join(columns) + "\n"]
+    lines += [",".join([repr(t), *map(repr, row)]) + "\n" for t, row in rows]
+    return "".join(lines).encode("ascii")
+
+
+def expected_files(master, snaps, ticks=None):
+    """Reference bytes of signals.csv and of each arrays/ file for the snapshots."""
+    out = master.layout.outputs
+    rows = snaps.rows if ticks is None else snaps.rows[:ticks]
+    scalars = [("noisy", "u"), ("noisy", "v"), ("echo", "e")]
+    files = {"signals.csv": legacy_csv(
+        ["time"] + [f"{c}.{s}" for c, s in scalars],
+        [(t, [v[out[key][0]] for key in scalars]) for t, v, _ in rows])}
+    for comp, sig, period in (("noisy", "w", 1), ("echo", "h", 3)):
+        off, size = out[(comp, sig)]
+        files[f"arrays/{comp}.{sig}.csv"] = legacy_csv(
+            ["time"] + [f"{comp}.{sig}[{i}]" for i in range(size)],
+            [(t, a[off:off + size].tolist()) for k, (t, _, a) in enumerate(rows) if k % period == 0])
+    return files
 
 
 def test_round_trip_is_bit_identical(tmp_path):
@@ -127,26 +168,198 @@ def test_partial_csv_after_failure_is_valid(tmp_path):
     assert read_csv(tmp_path / "signals.csv").shape == (8,)
 
 
-def test_rows_reach_the_disk_as_they_go(tmp_path):
-    """With flush_interval 0 every tick is on disk before the next one runs."""
-    seen = []
+def test_rows_reach_the_spool_as_they_go(tmp_path):
+    """With flush_interval 0 every tick's raw row is on disk before the next tick runs."""
+    sizes = []
 
     class Peek:
         def begin(self, master):
             pass
 
         def after_tick(self, tick, t, values, arrays):
-            with open(tmp_path / "signals.csv") as handle:
-                seen.append(len(handle.readlines()) - 1)
+            sizes.append((tmp_path / "signals.f64").stat().st_size)
 
     comps = {"noisy": _comp("noisy", Noisy)}
     recorder = Recorder(tmp_path, flush_interval=0.0)
     Master(comps, [], tick=0.1, total_ticks=4, observers=[recorder, Peek()]).run()
     recorder.close()
-    assert seen == [1, 2, 3, 4, 5]
+    assert sizes == [k * 3 * 8 for k in range(1, 6)]  # rows of time, noisy.u, noisy.v
+    assert not list(tmp_path.rglob("*.f64*"))  # spools removed once the CSV is complete
+    assert read_signals(tmp_path / "signals.csv")[1].shape == (5, 3)
 
 
 def test_write_json_replaces_non_finite(tmp_path):
     write_json(tmp_path / "m.json", {"a": float("nan"), "b": [1.5, float("inf")], "c": "x"})
     import json
     assert json.loads((tmp_path / "m.json").read_text()) == {"a": None, "b": [1.5, None], "c": "x"}
+
+
+@pytest.mark.parametrize("flush_interval", [0.0, 1e9], ids=["writer-process", "at-close"])
+def test_csv_bytes_equal_the_direct_repr_formatting(tmp_path, flush_interval):
+    """Through the writer process (tailing as the run goes) or converted at close:
+    every CSV byte equals the original in-loop repr formatting of the same data."""
+    master, snaps = _run(tmp_path, ticks=3000, flush_interval=flush_interval)
+    recorder = snaps.recorder
+    assert (recorder.writer_pid is not None) == (flush_interval == 0.0)
+    assert recorder.writer_problem is None
+    for name, expected in expected_files(master, snaps).items():
+        assert (tmp_path / name).read_bytes() == expected, name
+    assert not list(tmp_path.rglob("*.f64*"))
+
+
+def test_csv_grows_while_the_run_goes(tmp_path):
+    """The writer process converts the spool during the run, not only at close."""
+    grown = []
+
+    class WaitForWriter:
+        def begin(self, master):
+            pass
+
+        def after_tick(self, tick, t, values, arrays):
+            if tick == 200:  # give the writer up to 60 s to catch up with 150 rows
+                end = time.monotonic() + 60
+                while len(read_signals(tmp_path / "signals.csv")[1]) < 150 and time.monotonic() < end:
+                    time.sleep(0.02)
+                grown.append(len(read_signals(tmp_path / "signals.csv")[1]))
+
+    master, snaps = _run(tmp_path, ticks=300, flush_interval=0.0, extra=[WaitForWriter()])
+    assert grown[0] >= 150
+    assert (tmp_path / "signals.csv").read_bytes() == expected_files(master, snaps)["signals.csv"]
+
+
+def test_a_dead_writer_is_replaced_by_a_rebuild_at_close(tmp_path, capsys):
+    class KillWriter:
+        def begin(self, master):
+            self.recorder = next(o for o in master.observers if isinstance(o, Recorder))
+
+        def after_tick(self, tick, t, values, arrays):
+            if tick == 50:
+                os.kill(self.recorder.writer_pid, signal.SIGKILL)
+
+    master, snaps = _run(tmp_path, ticks=400, flush_interval=0.0, extra=[KillWriter()])
+    assert "exited with status -9" in snaps.recorder.writer_problem
+    assert "CSV files rebuilt from the spools" in capsys.readouterr().err
+    for name, expected in expected_files(master, snaps).items():
+        assert (tmp_path / name).read_bytes() == expected, name
+
+
+def test_keep_spool_and_recover_rebuild_the_same_bytes(tmp_path):
+    _run(tmp_path, ticks=30, keep_spool=True)
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*.csv")}
+    header = json.loads((tmp_path / "signals.f64.json").read_text())
+    assert header["columns"] == ["time", "noisy.u", "noisy.v", "echo.e"]
+    assert (tmp_path / "signals.f64").stat().st_size == 31 * 4 * 8
+    done = recover(tmp_path, keep_spool=True)
+    assert sorted((p.relative_to(tmp_path).as_posix(), rows, cut) for p, rows, cut in done) == [
+        ("arrays/echo.h.csv", 11, 0), ("arrays/noisy.w.csv", 31, 0), ("signals.csv", 31, 0)]
+    assert {p: p.read_bytes() for p in tmp_path.rglob("*.csv")} == before
+    assert (tmp_path / "signals.f64").exists() and (tmp_path / "arrays" / "echo.h.f64.json").exists()
+
+
+KILLED_MASTER = """
+import sys
+sys.path[:0] = [{tests!r}, {root!r}]
+import test_recorder as t
+from cosim.master import Master
+from cosim.recorder import Recorder
+recorder = Recorder(sys.argv[1], flush_interval=0.0)
+comps = {{"noisy": t._comp("noisy", t.Noisy, seed=7), "echo": t._comp("echo", t.Echo, 3)}}
+Master(comps, [t._edge("noisy", "u", "echo", "u")], tick=0.01, total_ticks=10**8,
+       observers=[recorder]).run()
+"""
+
+
+def _writer_processes(folder):
+    """PIDs of CSV writer processes working on `folder`."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        try:
+            cmdline = (proc / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if any(b"csv_writer.py" in a for a in cmdline) and any(str(folder).encode() in a for a in cmdline):
+            found.append(int(proc.name))
+    return found
+
+
+def _wait(condition, what, timeout_s=60.0):
+    end = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < end, f"timed out waiting for {what}"
+        time.sleep(0.05)
+
+
+def test_killed_master_leaves_a_spool_that_recover_turns_into_the_csv(tmp_path):
+    out = tmp_path / "run"
+    root = Path(__file__).resolve().parent.parent
+    script = KILLED_MASTER.format(tests=str(root / "tests"), root=str(root))
+    master_proc = subprocess.Popen([sys.executable, "-c", script, str(out)])
+    try:
+        spool = out / "signals.f64"
+        _wait(lambda: spool.exists() and spool.stat().st_size >= 300 * 32, "300 spooled rows")
+        master_proc.send_signal(signal.SIGKILL)
+        master_proc.wait()
+        # the orphaned writer sees its stdin close, converts what is on disk and leaves
+        _wait(lambda: not _writer_processes(out), "the writer process to finish")
+    finally:
+        if master_proc.poll() is None:
+            master_proc.kill()
+            master_proc.wait()
+    size = spool.stat().st_size
+    rows = size // 32
+    master, snaps = _run(tmp_path / "reference", ticks=rows - 1)
+    expected = expected_files(master, snaps)
+    assert (out / "signals.csv").read_bytes() == expected["signals.csv"]
+    with open(spool, "ab") as handle:
+        handle.write(b"\x01" * 5)  # a torn last row
+    done = {p.relative_to(out).as_posix(): (n, cut) for p, n, cut in recover(out)}
+    assert done["signals.csv"] == (rows, size % 32 + 5)
+    for name, data in expected.items():
+        got = (out / name).read_bytes()
+        assert data.startswith(got) and got.count(b"\n") - 1 == done[name][0], name
+    assert not list(out.rglob("*.f64*"))
+    with pytest.raises(UserError, match="no recording spool"):
+        recover(out)
+
+
+def test_recover_names_the_file_and_field_of_a_bad_spool(tmp_path):
+    with pytest.raises(UserError, match=r"no recording spool \(\*\.f64"):
+        recover(tmp_path)
+    with pytest.raises(UserError, match="not a folder"):
+        recover(tmp_path / "missing")
+    header = tmp_path / "signals.f64.json"
+    header.write_text(json.dumps({"format": "cosim-spool-f64", "csv": "signals.csv",
+                                  "columns": ["time", "a,b"], "byteorder": "little"}))
+    with pytest.raises(UserError, match=r"signals\.f64\.json: columns: .*'a,b'"):
+        recover(tmp_path)
+    header.write_text(json.dumps({"format": "cosim-spool-f64", "csv": "signals.csv",
+                                  "columns": ["time", "a"], "byteorder": "little"}))
+    with pytest.raises(UserError, match=r"signals\.f64: cannot read the spool"):
+        recover(tmp_path)
+    header.write_text("{not json")
+    with pytest.raises(UserError, match=r"signals\.f64\.json: unreadable spool header"):
+        recover(tmp_path)
+
+
+def test_cosim_recover_command(tmp_path, capsys):
+    from cosim.cli import main
+
+    _run(tmp_path, ticks=9, keep_spool=True)
+    (tmp_path / "signals.csv").unlink()
+    assert main(["recover", str(tmp_path)]) == 0
+    assert "signals.csv: 10 rows" in capsys.readouterr().out
+    assert read_signals(tmp_path / "signals.csv")[1].shape == (10, 4)
+    assert main(["recover", str(tmp_path)]) == 2
+    assert "no recording spool" in capsys.readouterr().err
+
+
+def test_format_rows_is_repr_for_any_float_and_byte_order():
+    rng = np.random.default_rng(3)
+    values = np.frombuffer(rng.bytes(8 * 60000), dtype=np.float64)
+    special = [0.0, -0.0, 5e-324, -1.7976931348623157e308, 0.1, 1 / 3, 1e16, 2.0 ** 70, 1e-7, 12.5]
+    values = np.concatenate([values[np.isfinite(values)], special])
+    values = values[:len(values) // 6 * 6]
+    expected = "".join(",".join(map(repr, row)) + "\n" for row in values.reshape(-1, 6).tolist())
+    assert format_rows(values.tobytes(), 6) == expected
+    other = "big" if sys.byteorder == "little" else "little"
+    assert format_rows(values.byteswap().tobytes(), 6, other) == expected
