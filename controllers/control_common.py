@@ -136,6 +136,8 @@ def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,
         (yL, psiL, yc, rho, rho_dot, vx_ref, vx_ref_dot), see the module docstring.
     """
     at_cg = foot(w, x, y, 0)
+    if w.best[1] < 0:       # a new window: start the preview point's search about ls ahead of the CG's
+        w.best[1] = w.best[0] + round(ls / w.mean_chord)
     preview = foot(w, x + ls * math.cos(psi), y + ls * math.sin(psi), 1)
     psi_l = (psi - preview[4] + math.pi) % (2.0 * math.pi) - math.pi     # wrap_angle, inlined
     return preview[3], psi_l, at_cg[3], preview[5], preview[6] * vx, at_cg[7], at_cg[8]

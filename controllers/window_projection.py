@@ -19,6 +19,7 @@ dkappa/ds is 0, and `extrapolated` says which end was used.
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -97,10 +98,10 @@ class PreparedWindow:
     """A window with its chords precomputed and its fields as Python lists (fast scalar access).
 
     Besides the fields it keeps, per chord i (from point i to i + 1), the start,
-    the direction and the squared length, and `reach`, an upper bound of the
-    polyline length from point 0 to point k (the chords' cumulative length,
-    inflated against rounding): the exact nearest-chord search uses it to skip
-    chords that cannot be nearer than the best one found so far. Four tracking
+    the direction and the squared length, and `reach`, the polyline length
+    from point 0 to point k (the chords' cumulative length; its rounding is
+    far inside the search's `slack`): the exact nearest-chord search uses it to
+    skip chords that cannot be nearer than the best one found so far. Four tracking
     slots (see tracked_chord) serve points that move little between calls,
     such as a controller's CG and preview point while the window is the same.
 
@@ -116,12 +117,10 @@ class PreparedWindow:
         delta = matrix[:2, 1:] - matrix[:2, :-1]            # chord dx, dy (as np.diff)
         square = delta * delta
         length2 = square[0] + square[1]
-        reach = np.zeros(matrix.shape[1])
-        np.cumsum(np.sqrt(length2) * (1.0 + 1e-12), out=reach[1:])
+        self.reach = list(itertools.accumulate(np.sqrt(length2).tolist(), initial=0.0))
         # slack of the skip test: covers rounding in reach, distances and squared distances
-        self.slack = 1e-9 * (1.0 + float(reach[-1]) + 2.0 * float(np.max(np.abs(matrix[:2]))))
+        self.slack = 1e-9 * (1.0 + self.reach[-1] + 2.0 * float(abs(matrix[:2]).max()))
         self.dx, self.dy = delta.tolist()
-        self.reach = reach.tolist()
         self.length2 = np.maximum(length2, 1e-300).tolist()
         self.chords = len(self.dx)
         # tracked_chord's state per slot: certificate (x0, y0, R, lo, hi) and last answer (-1: none)
@@ -129,7 +128,8 @@ class PreparedWindow:
         self.best = [-1, -1, -1, -1]
         # extra radius of a certificate: two mean chords (wider: more chords measured per call,
         # narrower: more full searches)
-        self.margin = 2.0 * self.reach[-1] / self.chords
+        self.mean_chord = self.reach[-1] / self.chords
+        self.margin = 2.0 * self.mean_chord
 
     def chord_distance2(self, i: int, px: float, py: float) -> tuple[float, float]:
         """Squared distance from (px, py) to chord i and the clamped chord parameter of the foot."""
