@@ -41,7 +41,7 @@ def test_fmpy_validate_reports_no_problem(fmu_dir, model, version):
 
 
 @pytest.mark.parametrize("model,version", CASES, ids=IDS)
-def test_simulate_fmu_runs(fmu_dir, model, version):
+def test_simulate_fmu_matches_our_own_stepping(fmu_dir, model, version):
     """fmpy.simulate_fmu and our own stepping (fmu_fixtures.Plant) give the same trajectory."""
     path, unzip = built_fmu(fmu_dir, model, version)
     inputs = {"torque": 100.0, "delta": 0.01}
