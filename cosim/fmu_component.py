@@ -17,9 +17,11 @@ from pathlib import Path
 from typing import Any
 
 import fmpy
-from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 from fmpy.fmi3 import FMU3Slave
+from fmpy.logging import addLoggerProxy
 
 from cosim.component import Port, Value
 from cosim.errors import ComponentFailure, FmuInterfaceError
@@ -225,15 +227,14 @@ class FmuComponent:
 
 
 def _fmi2_callbacks(log: FmuLog) -> fmi2CallbackFunctions:
-    """FMI 2 callbacks whose logger feeds `log` (fmpy's C proxy formats varargs)."""
-    from fmpy import calloc, free
-    from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
+    """FMI 2 callbacks whose logger feeds `log` (fmpy's C proxy formats varargs).
 
+    Args:
+        log: where the FMU's messages go.
+    """
     callbacks = fmi2CallbackFunctions()
     callbacks.logger = fmi2CallbackLoggerTYPE(log.fmi2)
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    from fmpy.logging import addLoggerProxy
-
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
     addLoggerProxy(ctypes.byref(callbacks))
     return callbacks
