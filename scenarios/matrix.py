@@ -36,9 +36,11 @@ BACKSTEPPING = "controllers.backstepping:BacksteppingController"
 #: is the one the scenario files run; the files list the others as comments.
 CONTROLLERS: dict[str, dict] = {
     "bs_adaptive_ff": {"python": BACKSTEPPING, "period": 0.01, "parameters": {
-        "adaptive": True, "lateral_law": "feedforward", "mu0": 0.8, "ke": 4.0, "kz": 20.0}},
+        "adaptive": True, "lateral_law": "feedforward", "mu0": 0.8, "mu_min": 0.3, "ke": 4.0,
+        "kz": 20.0}},
     "bs_adaptive_faithful": {"python": BACKSTEPPING, "period": 0.01, "parameters": {
-        "adaptive": True, "lateral_law": "faithful", "mu0": 0.8, "ke": 4.0, "kz": 20.0}},
+        "adaptive": True, "lateral_law": "faithful", "mu0": 0.8, "mu_min": 0.3, "ke": 4.0,
+        "kz": 20.0}},
     "bs_faithful": {"python": BACKSTEPPING, "period": 0.01, "parameters": {
         "adaptive": False, "lateral_law": "faithful", "mu0": 1.0, "ke": 4.0, "kz": 20.0}},
     "stanley": {"python": "controllers.baselines:StanleyController", "period": 0.01,

@@ -114,11 +114,13 @@ def test_iso_scenario_cones_and_path_match_the_layout():
 
 
 def test_iso_run_at_nominal_speed_hits_no_cone(tmp_path):
-    run = _run(tmp_path, "iso3888_2", ["duration=14", "components.vehicle.parameters.x0=60"])
+    run = _run(tmp_path, "iso3888_2", ["duration=16", "components.vehicle.parameters.x0=60"])
     x = _sig(run, "vehicle.x")
     assert x[-1] > 161.0 + 2.25                      # the whole car is past the last cone
     assert compute_metrics(run.run_dir)["cone_hits"] == 0
     assert np.min(_sig(run, "vehicle.vx")) > 7.0     # at its nominal 8 m/s, not crawling
+    delta = _sig(run, "controller.delta")[run.time > run.time[-1] - 2.0]
+    assert np.max(np.abs(np.diff(delta))) < 1e-3     # steering settles, no chatter at the rate limit
 
 
 def test_lane_keeping_errors_small_in_the_bend(tmp_path):
