@@ -97,3 +97,34 @@ def test_watch_rejects_a_bad_run_id():
     from cosim.zenoh_transport.live import watch
     with pytest.raises(ValueError, match="run_id"):
         next(watch("bad/id", "tcp/127.0.0.1:1"))
+
+
+def test_a_watcher_joining_later_gets_the_names_by_query():
+    """The in-band names went to the first watcher only; the second one asks."""
+    run_id, endpoint = f"t-live-late-{os.getpid()}", free_tcp_endpoint()
+    names = ["p.a", "p.b"]
+    first = start_watcher(run_id, endpoint)
+    second = None
+    try:
+        with ZenohComponents([], run_id, endpoint=endpoint) as hosted:
+            wait_for_watcher(hosted)
+            hosted.publish(1, 0.5, names, np.array([1.0, 2.0]))
+            assert json.loads(first.stdout.readline())[0] == 1  # names were sent in band
+            second = start_watcher(run_id, endpoint, count=3)
+            end = time.monotonic() + 30
+            k = 2
+            while second.poll() is None and time.monotonic() < end:
+                hosted.publish(k, k * 0.5, names, np.array([k, -k], dtype=float))
+                k += 1
+                time.sleep(0.05)
+        out = second.communicate(timeout=30)[0].splitlines()
+    finally:
+        first.kill()
+        if second is not None:
+            second.kill()
+    seen = [json.loads(line) for line in out]
+    assert len(seen) == 3
+    for tick, t, values in seen:
+        assert values == {"p.a": float(tick).hex(), "p.b": float(-tick).hex()}
+        assert t == (tick * 0.5).hex()
+    assert [s[0] for s in seen] == list(range(seen[0][0], seen[0][0] + 3))

@@ -7,7 +7,9 @@ almost nothing: a matching listener keeps `LivePublisher.matching` up to date
 as a plain attribute (asking Zenoh for the matching status costs microseconds;
 the listener also reports subscribers that were there before it). The names
 of the vector are answered by a queryable on
-`cosim/<run_id>/live/names`. `watch` is the other end, for another process.
+`cosim/<run_id>/live/names`, and also sent in band (a NAMES message on the data
+key ahead of the first vector that uses them). `watch` is the other end, for
+another process.
 """
 
 from __future__ import annotations
@@ -82,6 +84,10 @@ class LivePublisher:
         self._names_doc = json.dumps({"version": self._version, "names": list(names)})
         self._names = list(names)
         self._names_ref = names
+        # in band too, ahead of the first vector that uses them: a watcher that was
+        # already listening needs no query (which could come too late at a run's end)
+        self._publisher.put(HEADER.pack(Kind.NAMES, self._version, -1, 0.0)
+                            + self._names_doc.encode())
 
     def _answer_names(self, query: zenoh.Query) -> None:
         document = getattr(self, "_names_doc", json.dumps({"version": 0, "names": []}))
@@ -135,6 +141,10 @@ def watch_runs(run_id: str = "*", endpoint: str = "tcp/127.0.0.1:7447"
             if kind == Kind.END:
                 if run_id != "*":
                     return
+                continue
+            if kind == Kind.NAMES:
+                document = json.loads(data[HEADER.size:])
+                names[run] = (int(document["version"]), [str(n) for n in document["names"]])
                 continue
             if run not in names or names[run][0] != version:
                 names[run] = _fetch_names(session, run)

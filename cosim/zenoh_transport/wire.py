@@ -30,6 +30,7 @@ class Kind:
     TIMEOUT = 22   # master watchdog -> master: JSON {"component", "cause"}
     LIVE = 31      # master -> watchers: packed signal vector of one tick
     END = 32       # master -> watchers: the run is over
+    NAMES = 33     # master -> watchers: JSON {"version", "names"} of the LIVE vectors
 
 
 class CodecError(ValueError):
