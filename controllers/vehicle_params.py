@@ -87,16 +87,3 @@ class VehicleParams:
     def d(self) -> np.ndarray:
         """Side-wind input vector D."""
         return np.array([1.0 / self.m, self.lw / self.Iz])
-
-
-def params_from_mapping(values: dict[str, float]) -> VehicleParams:
-    """Build VehicleParams from keyword values (e.g. component parameters), defaults elsewhere.
-
-    Args:
-        values: a subset of the VehicleParams field names mapped to numbers.
-    """
-    names = {field.name for field in fields(VehicleParams)}
-    unknown = sorted(set(values) - names)
-    if unknown:
-        raise ComponentError(f"unknown vehicle parameter(s) {unknown}; known: {sorted(names)}")
-    return VehicleParams(**values)
