@@ -123,7 +123,7 @@ class PreparedWindow:
         self.dx, self.dy = delta.tolist()
         self.length2 = np.maximum(length2, 1e-300).tolist()
         self.chords = len(self.dx)
-        # tracked_chord's state per slot: certificate (x0, y0, R, lo, hi) and last answer (-1: none)
+        # tracked_chord's state per slot: certificate (x0, y0, R, lo, hi, floor), last answer (-1: none)
         self.certs: list[tuple | None] = [None, None, None, None]
         self.best = [-1, -1, -1, -1]
         # extra radius of a certificate: two mean chords (wider: more chords measured per call,
@@ -156,29 +156,36 @@ class PreparedWindow:
 
         Each slot (one per tracked point, e.g. 0 the CG, 1 the preview point)
         keeps a certificate from its last full search at p0: every chord
-        outside the index range [lo, hi] is farther than R from p0. A point p
-        within d of p0 then only needs the chords lo..hi measured: if the best
-        of them is nearer than R - d, no other chord can be nearer. Otherwise
-        a full search renews the certificate.
+        outside the index range [lo, hi] is farther than R from p0, and chord
+        k inside it at least floor[k] away. For a point p within d of p0, only
+        the chords of lo..hi whose floor[k] - d does not exceed the best
+        distance are measured; if the best is nearer than R - d, no other
+        chord can be nearer. Otherwise a full search renews the certificate.
 
         Args:
             px, py: the point; slot: 0 to 3.
         """
         cert = self.certs[slot]
         if cert is not None:
-            x0, y0, radius, lo, hi = cert
+            x0, y0, radius, lo, hi, floor = cert
             moved = math.hypot(px - x0, py - y0)
             if moved < radius:
-                i, best_d, best_t = -1, math.inf, 0.0
+                i = self.best[slot]
+                best_d, best_t = self.chord_distance2(i, px, py)
+                # chord k can only beat the best if floor[k] - moved (its least distance now) does
+                bound = math.sqrt(best_d) + self.slack + moved
                 xs, ys, dxs, dys, l2s = self.x, self.y, self.dx, self.dy, self.length2
-                for k in range(lo, hi + 1):        # chord_distance2, inlined
-                    x0, y0, dx, dy = xs[k], ys[k], dxs[k], dys[k]
+                for k in range(lo, hi + 1):
+                    if floor[k - lo] > bound or k == i:
+                        continue
+                    x0, y0, dx, dy = xs[k], ys[k], dxs[k], dys[k]        # chord_distance2, inlined
                     t = ((px - x0) * dx + (py - y0) * dy) / l2s[k]
                     t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
                     ex, ey = x0 + t * dx - px, y0 + t * dy - py
                     d = ex * ex + ey * ey
-                    if d < best_d:
+                    if d < best_d or (d == best_d and k < i):
                         i, best_d, best_t = k, d, t
+                        bound = math.sqrt(d) + self.slack + moved
                 if math.sqrt(best_d) + self.slack < radius - moved:
                     self.best[slot] = i
                     return i, best_t
@@ -214,8 +221,8 @@ class PreparedWindow:
         return i, best_d, best_t, lo, hi
 
     def _search(self, px: float, py: float, hint: int, margin: float) -> tuple[int, float, tuple]:
-        """Full exact search: (chord, chord parameter, (R, lo, hi)) with R = best distance + margin and
-        every chord outside lo..hi farther than R.
+        """Full exact search: (chord, chord parameter, (R, lo, hi, floor)) with R = best distance + margin,
+        every chord outside lo..hi farther than R and chord k of lo..hi at least floor[k - lo] away.
 
         A descent from `hint` finds a near chord, then the chords on each side
         are scanned, skipping runs whose polyline reach from an anchor point
@@ -250,7 +257,12 @@ class PreparedWindow:
             j -= 1
         radius = sqrt(best_d) + margin
         near = [k for k, d in seen if sqrt(d) <= radius]
-        return i, best_t, (radius, min(near), max(near))
+        lo, hi = min(near), max(near)
+        floor = [radius] * (hi - lo + 1)        # chords in lo..hi not measured were proven beyond radius
+        for k, d in seen:
+            if lo <= k <= hi:
+                floor[k - lo] = min(floor[k - lo], sqrt(d))
+        return i, best_t, (radius, lo, hi, floor)
 
     def segment(self, i: int) -> tuple[float, ...]:
         """End positions and end tangents (scaled by the arc-length step) of segment i."""
