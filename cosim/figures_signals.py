@@ -87,13 +87,13 @@ def reference_acceleration(run: RunData) -> Series | None:
     if found is not None:
         return found
     a_ref, win = run.array("planner.ref_a"), window(run, "ref")
-    vx, vy = run.signal("vehicle.x"), run.signal("vehicle.y")
-    if a_ref is None or win is None or vx is None or vy is None or len(run.time) == 0:
+    px, py = run.signal("vehicle.x"), run.signal("vehicle.y")  # position, not speed
+    if a_ref is None or win is None or px is None or py is None or len(run.time) == 0:
         return None
     xs, ys = win
     if xs.values.shape != a_ref.values.shape:
         return None
     tick = np.clip(np.searchsorted(run.time, xs.times), 0, len(run.time) - 1)
-    dist2 = (xs.values - vx[tick, None]) ** 2 + (ys.values - vy[tick, None]) ** 2
+    dist2 = (xs.values - px[tick, None]) ** 2 + (ys.values - py[tick, None]) ** 2
     nearest = np.argmin(dist2, axis=1)
     return a_ref.times, a_ref.values[np.arange(len(nearest)), nearest]
