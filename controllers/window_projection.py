@@ -123,6 +123,7 @@ class PreparedWindow:
         self.dx, self.dy = delta.tolist()
         self.length2 = np.maximum(length2, 1e-300).tolist()
         self.chords = len(self.dx)
+        self._segments: list[tuple | None] = [None] * self.chords
         # tracked_chord's state per slot: certificate (x0, y0, R, lo, hi, floor), last answer (-1: none)
         self.certs: list[tuple | None] = [None, None, None, None]
         self.best = [-1, -1, -1, -1]
@@ -265,11 +266,15 @@ class PreparedWindow:
         return i, best_t, (radius, lo, hi, floor)
 
     def segment(self, i: int) -> tuple[float, ...]:
-        """End positions and end tangents (scaled by the arc-length step) of segment i."""
-        step = self.s[i + 1] - self.s[i]
-        psi0, psi1 = self.psi[i], self.psi[i + 1]
-        return (self.x[i], self.y[i], step * math.cos(psi0), step * math.sin(psi0),
+        """End positions and end tangents (scaled by the arc-length step) of segment i (kept once made)."""
+        seg = self._segments[i]
+        if seg is None:
+            step = self.s[i + 1] - self.s[i]
+            psi0, psi1 = self.psi[i], self.psi[i + 1]
+            seg = self._segments[i] = (
+                self.x[i], self.y[i], step * math.cos(psi0), step * math.sin(psi0),
                 self.x[i + 1], self.y[i + 1], step * math.cos(psi1), step * math.sin(psi1))
+        return seg
 
 
 def _hermite(seg: tuple[float, ...], t: float, order: int = 2) -> list[tuple[float, float]]:
