@@ -127,6 +127,50 @@ def read_header(path: Path) -> SpoolHeader:
     return SpoolHeader(Path(path), tuple(columns), csv, byteorder)
 
 
+class RowFormatter:
+    """Formats whole float64 rows as CSV lines, every float as its repr.
+
+    A row whose values after the time are bit for bit those of the previous
+    row (a held array signal, e.g. a planner window that did not change)
+    reuses that row's text instead of formatting it again. The previous row
+    is remembered across calls, so a table can be formatted chunk by chunk.
+
+    Args:
+        ncols: floats per row (the time first).
+        byteorder: byte order of the data given to `format`.
+    """
+
+    def __init__(self, ncols: int, byteorder: str = sys.byteorder) -> None:
+        self.ncols = ncols
+        self.swap = byteorder != sys.byteorder
+        self._template = ",%r" * (ncols - 1) + "\n"  # "%r" of a float is exactly repr(float)
+        self._previous: bytes | None = None  # the previous row's values after the time, as bytes
+        self._previous_text = ""
+
+    def format(self, data: bytes) -> str:
+        """CSV lines of `data`, a whole number of rows.
+
+        Args:
+            data: raw float64 values.
+        """
+        values = array("d")
+        values.frombytes(data)
+        if self.swap:
+            values.byteswap()
+        n, size = self.ncols, 8 * self.ncols
+        template, previous, text = self._template, self._previous, self._previous_text
+        parts: list[str] = []
+        for row in range(len(values) // n):
+            start = row * n
+            payload = data[row * size + 8:(row + 1) * size]
+            if payload != previous:
+                previous, text = payload, template % tuple(values[start + 1:start + n])
+            parts.append(repr(values[start]))
+            parts.append(text)
+        self._previous, self._previous_text = previous, text
+        return "".join(parts)
+
+
 def format_rows(data: bytes, ncols: int, byteorder: str = sys.byteorder) -> str:
     """CSV lines of whole float64 rows, every float as its repr.
 
@@ -135,13 +179,7 @@ def format_rows(data: bytes, ncols: int, byteorder: str = sys.byteorder) -> str:
         ncols: floats per row.
         byteorder: byte order of `data`.
     """
-    values = array("d")
-    values.frombytes(data)
-    if byteorder != sys.byteorder:
-        values.byteswap()
-    # one C-level formatting pass; "%r" of a float is exactly repr(float)
-    template = ",".join(["%r"] * ncols) + "\n"
-    return (template * (len(values) // ncols)) % tuple(values)
+    return RowFormatter(ncols, byteorder).format(data)
 
 
 class SpoolTail:
@@ -155,6 +193,7 @@ class SpoolTail:
         self.header = header
         self.offset = 0
         self.rows = 0
+        self._formatter = RowFormatter(len(header.columns), header.byteorder)
         self._fd = os.open(header.spool_path, os.O_RDONLY)
         self._csv: IO[str] = open(header.csv_path, "a", encoding="ascii", newline="\n")
 
@@ -168,8 +207,7 @@ class SpoolTail:
         data = os.pread(self._fd, CHUNK_BYTES // size * size, self.offset)
         rows = len(data) // size
         if rows:
-            self._csv.write(format_rows(data[:rows * size], len(self.header.columns),
-                                        self.header.byteorder))
+            self._csv.write(self._formatter.format(data[:rows * size]))
             self._csv.flush()
             self.offset += rows * size
             self.rows += rows
@@ -201,7 +239,7 @@ def rebuild_csv(header: SpoolHeader) -> tuple[int, int]:
         source = open(spool, "rb")
     except OSError as exc:
         raise SpoolError(f"{spool}: cannot read the spool: {exc.strerror}") from None
-    size, ncols, rows = header.row_bytes, len(header.columns), 0
+    size, formatter, rows = header.row_bytes, RowFormatter(len(header.columns), header.byteorder), 0
     tmp = header.csv_path.with_name(header.csv + ".tmp")
     with source, open(tmp, "w", encoding="ascii", newline="\n") as out:
         out.write(header.csv_header_line())
@@ -209,7 +247,7 @@ def rebuild_csv(header: SpoolHeader) -> tuple[int, int]:
         while chunk := source.read(CHUNK_BYTES // size * size):
             data = tail + chunk
             whole = len(data) // size * size
-            out.write(format_rows(data[:whole], ncols, header.byteorder))
+            out.write(formatter.format(data[:whole]))
             rows += whole // size
             tail = data[whole:]
     os.replace(tmp, header.csv_path)

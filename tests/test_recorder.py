@@ -20,15 +20,16 @@ from cosim.component import Component, Port
 from cosim.errors import ComponentFailure
 from cosim.inproc import InprocComponent, PythonComponentLaunch
 from cosim.master import Master
-from cosim.csv_writer import format_rows
+from cosim.csv_writer import RowFormatter, format_rows
 from cosim.errors import UserError
 from cosim.recorder import Recorder, read_signals, recover, selected, write_json
 
 
 class Noisy(Component):
-    """Awkward floats (full-precision random, tiny, huge, negative zero) and an array."""
+    """Awkward floats (full-precision random, tiny, huge, negative zero) and arrays,
+    one of them held for 4 ticks at a time with zeros of alternating sign."""
 
-    outputs = (Port("u"), Port("v"), Port("w", size=3))
+    outputs = (Port("u"), Port("v"), Port("w", size=3), Port("z", size=2))
 
     def __init__(self, seed: int = 1, fail_at: float = -1.0):
         self.rng = np.random.default_rng(seed)
@@ -39,7 +40,8 @@ class Noisy(Component):
             raise RuntimeError("sensor unplugged")
         a, b = self.rng.standard_normal(2)
         return {"u": a / 3.0, "v": b * 1e-300 if a > 0 else -0.0,
-                "w": self.rng.standard_normal(3) * 1e200}
+                "w": self.rng.standard_normal(3) * 1e200,
+                "z": np.array([int(t * 25), -0.0 if int(t * 25) % 2 else 0.0])}
 
 
 class Echo(Component):
@@ -108,7 +110,7 @@ def expected_files(master, snaps, ticks=None):
     files = {"signals.csv": legacy_csv(
         ["time"] + [f"{c}.{s}" for c, s in scalars],
         [(t, [v[out[key][0]] for key in scalars]) for t, v, _ in rows])}
-    for comp, sig, period in (("noisy", "w", 1), ("echo", "h", 3)):
+    for comp, sig, period in (("noisy", "w", 1), ("noisy", "z", 1), ("echo", "h", 3)):
         off, size = out[(comp, sig)]
         files[f"arrays/{comp}.{sig}.csv"] = legacy_csv(
             ["time"] + [f"{comp}.{sig}[{i}]" for i in range(size)],
@@ -155,7 +157,8 @@ def test_include_exclude_globs(tmp_path):
     _run(tmp_path, ticks=2, include=["noisy.*", "echo.h"], exclude=["*.v"])
     names, _ = read_signals(tmp_path / "signals.csv")
     assert names == ["time", "noisy.u"]
-    assert sorted(p.name for p in (tmp_path / "arrays").iterdir()) == ["echo.h.csv", "noisy.w.csv"]
+    assert sorted(p.name for p in (tmp_path / "arrays").iterdir()) == [
+        "echo.h.csv", "noisy.w.csv", "noisy.z.csv"]
     assert selected("a.b", ["a.*"], []) and not selected("a.b", ["a.*"], ["*.b"])
 
 
@@ -251,7 +254,8 @@ def test_keep_spool_and_recover_rebuild_the_same_bytes(tmp_path):
     assert (tmp_path / "signals.f64").stat().st_size == 31 * 4 * 8
     done = recover(tmp_path, keep_spool=True)
     assert sorted((p.relative_to(tmp_path).as_posix(), rows, cut) for p, rows, cut in done) == [
-        ("arrays/echo.h.csv", 11, 0), ("arrays/noisy.w.csv", 31, 0), ("signals.csv", 31, 0)]
+        ("arrays/echo.h.csv", 11, 0), ("arrays/noisy.w.csv", 31, 0), ("arrays/noisy.z.csv", 31, 0),
+        ("signals.csv", 31, 0)]
     assert {p: p.read_bytes() for p in tmp_path.rglob("*.csv")} == before
     assert (tmp_path / "signals.f64").exists() and (tmp_path / "arrays" / "echo.h.f64.json").exists()
 
@@ -363,3 +367,13 @@ def test_format_rows_is_repr_for_any_float_and_byte_order():
     assert format_rows(values.tobytes(), 6) == expected
     other = "big" if sys.byteorder == "little" else "little"
     assert format_rows(values.byteswap().tobytes(), 6, other) == expected
+
+
+def test_a_repeated_row_reuses_its_text_only_when_bit_identical():
+    rows = [[0.0, 1.5, -0.0], [0.01, 1.5, -0.0], [0.02, 1.5, 0.0], [0.03, 1.5, 0.0], [0.04, 2.5, 0.0]]
+    data = np.array(rows).tobytes()
+    expected = "".join(",".join(map(repr, row)) + "\n" for row in rows)
+    assert format_rows(data, 3) == expected  # -0.0 and 0.0 are equal floats, not the same text
+    formatter = RowFormatter(3)
+    assert formatter.format(data[:48]) + formatter.format(data[48:]) == expected  # split stream
+    assert format_rows(np.array([1.0, 2.0, 2.0]).tobytes(), 1) == "1.0\n2.0\n2.0\n"
