@@ -238,6 +238,10 @@ class DistributedComponents(ZenohComponents):
                             + ") need an endpoint of this master that the workers can reach: "
                               "give --listen tcp/ADDRESS:PORT (or listen: in --deploy)")
         endpoint = master_endpoint(self.settings.listen[0]) if self.settings.listen else None
+        if self.placement and endpoint and _unspecified(endpoint):
+            raise UserError(f"--listen {self.settings.listen[0]}: the workers' component "
+                            f"processes connect back to this endpoint, so give an address "
+                            f"of this host they can reach, not a wildcard one")
         super().__init__(specs, run_id, deadline_s, endpoint, connect=self.settings.connect,
                          startup_timeout_s=startup_timeout_s)
         self.workers: dict[str, dict[str, Any]] = {}
@@ -344,6 +348,12 @@ class DistributedComponents(ZenohComponents):
             if ask_worker(self.session, worker, {"op": "info"}, SETTLE_PROBE_S) is not None:
                 return
             time.sleep(SETTLE_POLL_S)
+
+
+def _unspecified(endpoint: str) -> bool:
+    """Whether the endpoint listens on every interface (0.0.0.0, [::])."""
+    host = endpoint.partition("/")[2].rpartition(":")[0].strip("[]")
+    return host in ("0.0.0.0", "::", "")
 
 
 def master_endpoint(endpoint: str) -> str:

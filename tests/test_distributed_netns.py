@@ -65,7 +65,7 @@ class Host:
         self.proc = subprocess.Popen(lab.exec(host, argv), cwd=ROOT, env=_env(),
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                      start_new_session=True, text=True)
-        wait_for_line(self.proc, f"worker '{name}' ready", 30)
+        wait_for_line(self.proc, f"worker '{name}' ready", 60)
 
     def signal(self, sig: int) -> None:
         """Send `sig` to the worker and every component process it started."""
@@ -105,16 +105,30 @@ def lab():
         yield made
 
 
+@pytest.fixture(scope="module")
+def _workers(lab):
+    started: dict[str, Host] = {}
+    yield started
+    for host in started.values():
+        host.close()
+
+
 @pytest.fixture
-def hosts(lab):
-    started = []
-    try:
-        started.append(Host(lab, "a", "wa", "--listen", f"tcp/{lab.address('a')}:{PORT}"))
-        started.append(Host(lab, "b", "wb", "--listen", f"tcp/{lab.address('b')}:{PORT}"))
-        yield {h.name: h for h in started}
-    finally:
-        for host in started:
-            host.close()
+def hosts(lab, _workers):
+    """Workers wa and wb, shared by the tests; one a test killed is started again."""
+    for host, name in (("a", "wa"), ("b", "wb")):
+        if name in _workers and _workers[name].proc.poll() is not None:
+            _workers.pop(name).close()
+        if name not in _workers:
+            _workers[name] = Host(lab, host, name, "--listen", f"tcp/{lab.address(host)}:{PORT}")
+    return _workers
+
+
+@pytest.fixture(scope="module")
+def expected_short(tmp_path_factory) -> bytes:
+    """signals.csv of the short test scenario run in-process."""
+    folder = tmp_path_factory.mktemp("local")
+    return local_run(write_scenario(folder), folder / "run")
 
 
 def master_argv(lab: netns.NetLab, scenario: Path, out: Path, *extra: str) -> list[str]:
@@ -160,9 +174,9 @@ def wait_for_ticks(signals: Path, rows: int, timeout_s: float = 30) -> None:
 
 
 # ------------------------------------------------------------------ tests
-def test_three_hosts_bit_identical_to_local_run(lab, hosts, tmp_path):
+def test_three_hosts_bit_identical_to_local_run(lab, hosts, tmp_path, expected_short):
     scenario = write_scenario(tmp_path)
-    expected = local_run(scenario, tmp_path / "local")
+    expected = expected_short
     code, err = finish(start_master(lab, scenario, tmp_path / "remote", "--place", "echo=wb"))
     assert code == 0, err
     assert (tmp_path / "remote" / "signals.csv").read_bytes() == expected
@@ -273,16 +287,16 @@ def _check_partial(out: Path, err: str) -> int:
     return data.shape[0]
 
 
-def _next_run_on(lab, tmp_path, worker: str) -> None:
+def _next_run_on(lab, tmp_path, worker: str, expected: bytes) -> None:
     scenario = write_scenario(tmp_path)
-    expected = local_run(scenario, tmp_path / "next-local")
     code, err = finish(start_master(lab, scenario, tmp_path / "next", "--place", f"mixer={worker}",
                                     "--place", f"echo={worker}"))
     assert code == 0, err
     assert (tmp_path / "next" / "signals.csv").read_bytes() == expected
 
 
-def test_link_cut_mid_run_names_worker_component_and_tick(lab, hosts, tmp_path):
+def test_link_cut_mid_run_names_worker_component_and_tick(lab, hosts, tmp_path,
+                                                         expected_short):
     try:
         err, out = _fault_run(lab, tmp_path, lambda: lab.link_down("b"))
     finally:
@@ -290,24 +304,24 @@ def test_link_cut_mid_run_names_worker_component_and_tick(lab, hosts, tmp_path):
     assert "component 'echo' failed at tick" in err and "worker 'wb'" in err
     assert_unreachable(err)
     _check_partial(out, err)
-    _next_run_on(lab, tmp_path, "wa")
+    _next_run_on(lab, tmp_path, "wa", expected_short)
 
 
-def test_killed_worker_host_mid_run(lab, hosts, tmp_path):
+def test_killed_worker_host_mid_run(lab, hosts, tmp_path, expected_short):
     err, out = _fault_run(lab, tmp_path, lambda: hosts["wa"].signal(signal.SIGKILL))
     assert "component 'mixer' failed at tick" in err
     assert "worker 'wa' on host" in err and "became unreachable (host down" in err
     _check_partial(out, err)
-    _next_run_on(lab, tmp_path, "wb")
+    _next_run_on(lab, tmp_path, "wb", expected_short)
 
 
-def test_frozen_worker_host_mid_run(lab, hosts, tmp_path):
+def test_frozen_worker_host_mid_run(lab, hosts, tmp_path, expected_short):
     err, out = _fault_run(lab, tmp_path, lambda: hosts["wb"].signal(signal.SIGSTOP))
     hosts["wb"].signal(signal.SIGCONT)
     assert "component 'echo' failed at tick" in err and "worker 'wb'" in err
     assert_unreachable(err)
     _check_partial(out, err)
-    _next_run_on(lab, tmp_path, "wa")
+    _next_run_on(lab, tmp_path, "wa", expected_short)
 
 
 def test_two_concurrent_runs_do_not_mix(lab, hosts, tmp_path):
@@ -324,7 +338,7 @@ def test_two_concurrent_runs_do_not_mix(lab, hosts, tmp_path):
         assert (tmp_path / name / "signals.csv").read_bytes() == expected[name]
 
 
-def test_tls_run_across_hosts(lab, tmp_path):
+def test_tls_run_across_hosts(lab, tmp_path, expected_short):
     certs = tmp_path / "certs"
     addresses = [lab.address(h) for h in ("master", "a", "b")]
     subprocess.run(["sh", str(ROOT / "examples" / "tls" / "make_certs.sh"), str(certs),
@@ -342,7 +356,7 @@ def test_tls_run_across_hosts(lab, tmp_path):
         for host, name in (("a", "wa"), ("b", "wb")):
             workers.append(Host(lab, host, name, "--deploy", str(tmp_path / f"deploy-{host}.yaml")))
         scenario = write_scenario(tmp_path)
-        expected = local_run(scenario, tmp_path / "local")
+        expected = expected_short
         argv = lab.exec("master", [sys.executable, "-m", "cosim.cli", "run", str(scenario),
                                    "--out", str(tmp_path / "tls"), "--no-figures", "--place",
                                    "echo=wb", "--deploy", str(tmp_path / "deploy-master.yaml")])

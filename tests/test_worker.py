@@ -200,6 +200,17 @@ def test_missing_worker_fails_before_start_naming_it_and_the_reachable_ones(work
     assert f"reachable workers: w1 (host {worker.worker.host!r})" in text
 
 
+def test_wildcard_master_endpoint_is_refused_for_placed_components():
+    settings = DeploySettings(listen=["tcp/0.0.0.0:0"], connect=["tcp/127.0.0.1:1"])
+    with pytest.raises(UserError, match=r"--listen tcp/0.0.0.0:0: the workers' component "
+                                        r"processes connect back"):
+        DistributedComponents([launch("mix", "Mixer")], "t-wild", 2.0,
+                              placement={"mix": "w1"}, settings=settings)
+    with pytest.raises(UserError, match="need an endpoint of this master"):
+        DistributedComponents([launch("mix", "Mixer")], "t-nolisten", 2.0,
+                              placement={"mix": "w1"}, settings=DeploySettings())
+
+
 def test_refusal_reaches_the_master(worker):
     worker.worker.allow = ("controllers.",)
     with pytest.raises(UserError, match=r"worker 'w1' on host .* refuses component 'mix': "
