@@ -4,6 +4,8 @@ Ports (plant measurements and the recommended trajectory window), input
 checks with clear messages, the step clock (dt from consecutive t values),
 path errors at the preview point, actuator limits (steer angle and rate,
 torque) and the PI speed loop of the baselines. No control law lives here.
+This is every controller's per-tick path: the window is checked and prepared
+once per new window (InputReader), values travel as tuples of floats.
 
 Path errors: the preview point P = CG + ls [cos psi, sin psi] is projected on
 the window; yL is P's signed offset (left of the path positive), psiL =
