@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import signal
 import threading
+from collections.abc import Callable
 
 import zenoh
 
@@ -19,13 +20,13 @@ from cosim.errors import UserError
 
 
 def run_router(settings: DeploySettings, stop_event: threading.Event | None = None,
-               ready: threading.Event | None = None) -> None:
+               on_ready: Callable[[], None] | None = None) -> None:
     """Serve as a router until `stop_event` is set or SIGTERM/SIGINT arrives.
 
     Args:
         settings: `listen` endpoints (at least one), `connect` (other routers), TLS, ACL.
         stop_event: set it to end the router (None: only signals end it).
-        ready: set once the router listens.
+        on_ready: called once the router listens.
     """
     if not settings.listen:
         raise UserError("cosim router needs at least one --listen ENDPOINT")
@@ -39,7 +40,7 @@ def run_router(settings: DeploySettings, stop_event: threading.Event | None = No
     except zenoh.ZError as exc:
         raise UserError(f"router cannot listen on {settings.listen}: {exc}") from None
     with session:
-        if ready is not None:
-            ready.set()
+        if on_ready is not None:
+            on_ready()
         while not stop_event.wait(0.2):
             pass

@@ -95,8 +95,8 @@ def router(
     try:
         settings = load_settings(deploy, listen or ([] if deploy else ["tcp/0.0.0.0:7447"]),
                                  connect)
-        print(f"router listening on {', '.join(settings.listen)}", flush=True)
-        run_router(settings)
+        run_router(settings, on_ready=lambda: print(
+            f"router listening on {', '.join(settings.listen)}", flush=True))
     except UserError as error:
         raise _error(error) from None
 

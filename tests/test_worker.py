@@ -357,7 +357,7 @@ def test_router_joins_master_and_worker_that_only_know_the_router():
     router_endpoint = free_tcp_endpoint()
     stop, ready = threading.Event(), threading.Event()
     router = threading.Thread(target=run_router, args=(DeploySettings(listen=[router_endpoint]),
-                                                       stop, ready))
+                                                       stop, ready.set))
     router.start()
     agent = None
     try:
@@ -381,3 +381,37 @@ def test_router_joins_master_and_worker_that_only_know_the_router():
             agent.close()
         stop.set()
         router.join()
+
+
+def test_cli_router_and_worker_processes_end_cleanly_on_sigterm():
+    """`cosim router` and `cosim worker` as processes: ready lines, a worker listed
+    through the router, exit status 0 on SIGTERM (what a service manager sends)."""
+    import signal
+    import subprocess
+    import sys
+    from tests.test_distributed_netns import wait_for_line
+    endpoint = free_tcp_endpoint()
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    router = subprocess.Popen([sys.executable, "-m", "cosim.cli", "router", "--listen", endpoint],
+                              cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True)
+    worker = None
+    try:
+        wait_for_line(router, f"router listening on {endpoint}", 60)
+        worker = subprocess.Popen([sys.executable, "-m", "cosim.cli", "worker", "--name", "wp",
+                                   "--connect", endpoint], cwd=ROOT, env=env,
+                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        wait_for_line(worker, "worker 'wp' ready", 60)
+        found = list_workers(DeploySettings(connect=[endpoint]), 1.0)
+        assert [(w["name"], w["pid"], w["allow"]) for w in found] == \
+            [("wp", worker.pid, ["controllers.", "cosim.sources"])]
+        for proc in (worker, router):
+            proc.send_signal(signal.SIGTERM)
+            assert proc.wait(30) == 0
+    finally:
+        for proc in (worker, router):
+            if proc is not None and proc.poll() is None:
+                proc.kill()
+                proc.wait()
+            if proc is not None:
+                proc.stdout.close()
