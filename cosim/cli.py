@@ -67,6 +67,8 @@ def run(
     connect: list[str] = typer.Option([], "--connect", help="worker or router endpoint, repeatable"),
     deploy: Optional[Path] = typer.Option(None, "--deploy", help="deployment settings YAML (endpoints, TLS, ACL)"),
     deadline: float = typer.Option(10.0, "--deadline", help="per-exchange deadline of remote components, s"),
+    prestart: bool = typer.Option(True, "--prestart/--no-prestart",
+                                  help="start component processes while the scenario loads"),
 ) -> None:
     """Run a scenario and write its run folder."""
     from cosim.run import run_scenario
@@ -74,6 +76,11 @@ def run(
     from cosim.startup import StartupClock
 
     clock = StartupClock.from_process_start()  # time to tick 0 as the user sees it
+    early = None
+    if prestart and transport == "zenoh" and not (place or listen or connect or deploy):
+        from cosim.prestart import prestart_components
+
+        early = prestart_components(scenario)  # their start overlaps the scenario's load
     try:
         loaded = load_scenario(scenario, overrides=set_)
         clock.mark("scenario_loaded")
@@ -86,9 +93,13 @@ def run(
         with _sigterm_interrupts():
             result = run_scenario(loaded, folder, transport=transport, realtime=realtime,
                                   progress=sys.stdout.isatty(), place=place, deploy=settings,
-                                  deadline_s=deadline, clock=clock, on_live=_print_live)
+                                  deadline_s=deadline, clock=clock, on_live=_print_live,
+                                  prestart=early)
     except UserError as error:
         raise _fail(error) from None
+    finally:
+        if early is not None:
+            early.close()
     if result.ticks > 0:
         for note in analyse_run_folder(result, figures):
             print(note)

@@ -187,7 +187,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  realtime: float | None = None, progress: bool = True,
                  deadline_s: float = DEFAULT_DEADLINE_S, place: Sequence[str] = (),
                  deploy: Any = None, clock: StartupClock | None = None,
-                 on_live: Callable[[str, str], None] | None = None) -> RunResult:
+                 on_live: Callable[[str, str], None] | None = None,
+                 prestart: Any = None) -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -207,6 +208,9 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             passes one that starts with the process); None: starts now.
         on_live: called with (run_id, endpoint) as soon as the run can be
             watched live (zenoh transport only), before tick 0.
+        prestart: a `cosim.prestart.Prestart` (component processes started
+            while the scenario loaded): used for a local zenoh run, ended
+            otherwise; always closed before returning.
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -218,21 +222,27 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
     if realtime is not None and not realtime > 0:
         raise UserError(f"--realtime factor must be > 0, got {realtime!r}")
     clock = clock or StartupClock.from_now()
-    from cosim.placement import resolve_placement
-
-    placement = resolve_placement(scenario, place)
-    if placement and transport != "zenoh":
-        raise UserError("components placed on workers need --transport zenoh: "
-                        + ", ".join(f"{c} on {w!r}" for c, w in placement.items()))
-    launches = plan_launches(scenario, import_classes=transport != "zenoh")
-    launches += _placed_fmu_launches(scenario, placement)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    run_id = uuid.uuid4().hex[:12]
     with contextlib.ExitStack() as stack:
+        if prestart is not None:
+            stack.callback(prestart.close)
+        from cosim.placement import resolve_placement
+
+        placement = resolve_placement(scenario, place)
+        if placement and transport != "zenoh":
+            raise UserError("components placed on workers need --transport zenoh: "
+                            + ", ".join(f"{c} on {w!r}" for c, w in placement.items()))
+        if prestart is not None and (transport != "zenoh" or placement or deploy is not None):
+            prestart.close()  # not this kind of run: free the CPU at once
+            prestart = None
+        launches = plan_launches(scenario, import_classes=transport != "zenoh")
+        launches += _placed_fmu_launches(scenario, placement)
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        run_id = prestart.run_id if prestart is not None else uuid.uuid4().hex[:12]
         remote = None
         if transport == "zenoh":
-            remote = _spawn_remote(launches, run_id, deadline_s, placement, deploy, stack)
+            remote = _spawn_remote(launches, run_id, deadline_s, placement, deploy, stack,
+                                   prestart)
             clock.mark("spawned")
             if on_live is not None:
                 on_live(run_id, remote.endpoint)
@@ -255,7 +265,8 @@ def _placed_fmu_launches(scenario: Any, placement: dict[str, str]) -> list[Pytho
 
 
 def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s: float,
-                  placement: dict[str, str], deploy: Any, stack: contextlib.ExitStack) -> Any:
+                  placement: dict[str, str], deploy: Any, stack: contextlib.ExitStack,
+                  prestart: Any = None) -> Any:
     """Start the component processes (without waiting for them); closed with `stack`."""
     try:
         from cosim.zenoh_transport import ZenohComponents
@@ -267,6 +278,9 @@ def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s
 
         remote = DistributedComponents(launches, run_id, deadline_s, placement=placement,
                                        settings=deploy)
+    elif prestart is not None:
+        remote = ZenohComponents(launches, run_id, deadline_s, prestart.endpoint,
+                                 prestarted=prestart.children)
     else:
         remote = ZenohComponents(launches, run_id, deadline_s)
     stack.callback(remote.close)

@@ -2,8 +2,9 @@
 
 `StartupClock` measures seconds from an origin (the start of this OS process
 when known, else the moment the clock was made) and keeps named marks
-("scenario_loaded", "spawned", "components_ready", "tick0"), which the run
-writes into manifest.json. It imports nothing heavy, so component processes
+("scenario_loaded", "spawned", "components_ready", "tick0"), with the CPU
+time the process had used at each (a load-independent view of the work),
+which the run writes into manifest.json. It imports nothing heavy, so component processes
 use `process_age_s` too.
 """
 
@@ -43,6 +44,7 @@ class StartupClock:
         self.origin = origin
         self.origin_kind = origin_kind
         self.marks: dict[str, float] = {}
+        self.cpu: dict[str, float] = {}  # CPU seconds this process had used at each mark
 
     @classmethod
     def from_process_start(cls) -> "StartupClock":
@@ -71,8 +73,10 @@ class StartupClock:
         """
         seconds = (time.perf_counter() if at is None else at) - self.origin
         self.marks[name] = seconds
+        self.cpu[name] = time.process_time()
         return seconds
 
     def as_dict(self) -> dict[str, object]:
-        """The origin and the marks, for manifest.json."""
-        return {"origin": self.origin_kind, **{f"{k}_s": v for k, v in self.marks.items()}}
+        """The origin, the marks and the CPU time at each mark, for manifest.json."""
+        return {"origin": self.origin_kind, **{f"{k}_s": v for k, v in self.marks.items()},
+                "cpu_s": dict(self.cpu)}

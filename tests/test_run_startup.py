@@ -50,7 +50,10 @@ def test_clock_marks_are_seconds_since_its_origin():
     clock = StartupClock(100.0, "test origin")
     assert clock.mark("a", at=100.25) == 0.25
     assert clock.mark("b", at=101.5) == 1.5
-    assert clock.as_dict() == {"origin": "test origin", "a_s": 0.25, "b_s": 1.5}
+    marks = clock.as_dict()
+    cpu = marks.pop("cpu_s")
+    assert marks == {"origin": "test origin", "a_s": 0.25, "b_s": 1.5}
+    assert list(cpu) == ["a", "b"] and 0 < cpu["a"] <= cpu["b"] <= time.process_time()
     started = StartupClock.from_process_start()
     assert started.origin_kind == "process start"
     assert 0 < started.mark("now") < time.perf_counter()
@@ -122,9 +125,11 @@ def test_start_up_marks_in_the_manifest_are_in_order(tmp_path, monkeypatch):
             assert sorted(processes) == ["gain", "ramp"]
             for ages in processes.values():
                 order = [ages[k] for k in ("imported", "session", "built", "ready")]
-                assert order == sorted(order) and order[0] > 0
+                assert order == sorted(order) and order[0] > 0 and ages["cpu"] > 0
         values = [marks[k] for k in steps]
         assert values == sorted(values) and values[0] > 0
+        cpu = [marks["cpu_s"][k[:-2]] for k in steps]
+        assert cpu == sorted(cpu) and cpu[0] > 0
 
 
 class Counter(Component):

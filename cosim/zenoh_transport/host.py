@@ -81,11 +81,15 @@ class ZenohComponents:
         endpoint: the master's listen endpoint; None picks a free 127.0.0.1 TCP port.
         connect: extra endpoints the master joins (a router, another host), or None.
         startup_timeout_s: longest wait for every process's handshake.
+        prestarted: processes already started with `ChildProcess.prestart` (same
+            run id and `endpoint`), by component name; `spawn` sends them their
+            spec instead of starting new ones and ends those no spec names.
     """
 
     def __init__(self, specs: Sequence[PythonComponentLaunch], run_id: str,
                  deadline_s: float = 5.0, endpoint: str | None = None, *,
-                 connect: Sequence[str] | None = None, startup_timeout_s: float = 20.0) -> None:
+                 connect: Sequence[str] | None = None, startup_timeout_s: float = 20.0,
+                 prestarted: Mapping[str, ChildProcess] | None = None) -> None:
         self.specs = list(specs)
         self.run_id = config.check_key_chunk(run_id, "run_id")
         names = [config.check_key_chunk(s.name, "component name") for s in self.specs]
@@ -100,6 +104,9 @@ class ZenohComponents:
         self._components: dict[str, RemoteComponent] | None = None
         self.session: Any = None
         self._children: dict[str, ChildProcess] = {}
+        self._prestarted = dict(prestarted or {})
+        if self._prestarted and endpoint is None:
+            raise ValueError("prestarted processes need the endpoint they connect to")
         self._watchdog: Watchdog | None = None
         self._live: LivePublisher | None = None
         self._seq = 0
@@ -122,7 +129,14 @@ class ZenohComponents:
         try:
             self._open_session()
             for spec in self.specs:
-                self._children[spec.name] = self._spawn(spec)
+                early = self._prestarted.pop(spec.name, None)
+                if early is not None:
+                    early.send_spec(spec)
+                    self._children[spec.name] = early
+                else:
+                    self._children[spec.name] = self._spawn(spec)
+            reap(list(self._prestarted.values()), TERMINATE_GRACE_S)  # not in this run
+            self._prestarted.clear()
         except BaseException:
             self.close()
             raise
@@ -161,8 +175,9 @@ class ZenohComponents:
         if self._watchdog is not None:
             self._watchdog.close()
             self._watchdog = None
-        reap(list(self._children.values()), TERMINATE_GRACE_S)
+        reap([*self._children.values(), *self._prestarted.values()], TERMINATE_GRACE_S)
         self._children.clear()
+        self._prestarted.clear()
         if self.session is not None:
             if self._live is not None:
                 self._live.close()

@@ -53,6 +53,20 @@ def _child_env() -> dict[str, str]:
     return env
 
 
+def _runner_argv(name: str, run_id: str, endpoint: str) -> list[str]:
+    return [sys.executable, "-m", "cosim.zenoh_transport.runner", "--name", name,
+            "--run-id", run_id, "--connect", endpoint]
+
+
+def _params_json(spec: PythonComponentLaunch) -> str:
+    """The constructor parameters as JSON; UserError naming the component if they are not."""
+    try:
+        return json.dumps(dict(spec.parameters), default=_json_default)
+    except (TypeError, ValueError) as exc:
+        raise UserError(f"component {spec.name!r}: parameters cannot be sent to its "
+                        f"process: {exc}") from None
+
+
 class ChildProcess:
     """One component process.
 
@@ -65,18 +79,47 @@ class ChildProcess:
 
     def __init__(self, spec: PythonComponentLaunch, run_id: str, endpoint: str,
                  extra_args: Sequence[str] = ()) -> None:
-        self.name = spec.name
-        try:
-            params = json.dumps(dict(spec.parameters), default=_json_default)
-        except (TypeError, ValueError) as exc:
-            raise UserError(f"component {spec.name!r}: parameters cannot be sent to its "
-                            f"process: {exc}") from None
-        argv = [sys.executable, "-m", "cosim.zenoh_transport.runner", "--name", spec.name,
-                "--run-id", run_id, "--connect", endpoint, "--class", spec.class_path,
-                "--params", params, "--period-ticks", str(int(spec.period_ticks)),
+        argv = [*_runner_argv(spec.name, run_id, endpoint), "--class", spec.class_path,
+                "--params", _params_json(spec), "--period-ticks", str(int(spec.period_ticks)),
                 *extra_args]
-        self._log = tempfile.TemporaryFile(prefix=f"cosim-{spec.name}-")
-        self.popen = subprocess.Popen(argv, env=_child_env(), stdin=subprocess.DEVNULL,
+        self._start(spec.name, argv, subprocess.DEVNULL)
+
+    @classmethod
+    def prestart(cls, name: str, run_id: str, endpoint: str) -> "ChildProcess":
+        """Start the process of component `name` before its class, parameters and
+        period are known: it loads its modules (numpy, zenoh), then waits for
+        `send_spec` on its stdin (and exits quietly if stdin closes first).
+
+        Args:
+            name: the component's name (on the command line, for ps).
+            run_id: the run's id.
+            endpoint: the master's listen endpoint the child will connect to.
+        """
+        child = cls.__new__(cls)
+        child._start(name, [*_runner_argv(name, run_id, endpoint), "--spec-stdin"],
+                     subprocess.PIPE)
+        return child
+
+    def send_spec(self, spec: PythonComponentLaunch) -> None:
+        """Give a prestarted process its class, parameters and period.
+
+        Args:
+            spec: the launch description; its name must be this process's.
+        """
+        if spec.name != self.name:
+            raise ValueError(f"spec of {spec.name!r} sent to the process of {self.name!r}")
+        line = json.dumps({"class_path": spec.class_path, "period_ticks": spec.period_ticks,
+                           "parameters": json.loads(_params_json(spec))})
+        try:
+            self.popen.stdin.write(line.encode() + b"\n")
+            self.popen.stdin.close()
+        except OSError:
+            pass  # the process died: the handshake reports how
+
+    def _start(self, name: str, argv: list[str], stdin: int) -> None:
+        self.name = name
+        self._log = tempfile.TemporaryFile(prefix=f"cosim-{name}-")
+        self.popen = subprocess.Popen(argv, env=_child_env(), stdin=stdin,
                                       stdout=self._log, stderr=subprocess.STDOUT)
         self.pid = self.popen.pid
 
@@ -134,3 +177,6 @@ def reap(children: list[ChildProcess], grace_s: float) -> None:
             child.popen.kill()
             child.popen.wait()
         child.close_log()
+        stdin = getattr(child.popen, "stdin", None)  # a prestarted process's pipe
+        if stdin is not None:
+            stdin.close()

@@ -3,6 +3,10 @@
     python -m cosim.zenoh_transport.runner --name controller --run-id R \\
         --connect tcp/127.0.0.1:7447 --class pkg.module:Class --params '{"k": 1}'
 
+With `--spec-stdin` instead of `--class/--params`, the process was started
+before the master knew them (`cosim run` starts it while it loads the
+scenario): it loads its modules, then reads them as one JSON line on stdin.
+
 The process joins the master's endpoint as a peer, declares a liveliness
 token, builds the component, then answers requests in a blocking receive
 loop in the main thread: HELLO (its port declarations), START, STEP and STOP.
@@ -47,13 +51,19 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--name", required=True, help="component name in the scenario")
     parser.add_argument("--run-id", required=True, help="run id scoping every key")
     parser.add_argument("--connect", required=True, help="the master's Zenoh endpoint")
-    parser.add_argument("--class", dest="class_path", required=True, help="module:Class")
+    parser.add_argument("--class", dest="class_path", help="module:Class")
     parser.add_argument("--params", default="{}", help="constructor parameters as JSON")
     parser.add_argument("--period-ticks", type=int, default=1, help="for ps and logs only")
     parser.add_argument("--zenoh-config", default=None,
                         help="full session config as JSON (a worker's TLS/ACL); replaces the "
                              "default peer config, --connect then only names the master")
-    return parser.parse_args(argv)
+    parser.add_argument("--spec-stdin", action="store_true",
+                        help="read class, parameters and period as one JSON line on stdin "
+                             "(a process started before the master knew them)")
+    args = parser.parse_args(argv)
+    if not args.class_path and not args.spec_stdin:
+        parser.error("give --class or --spec-stdin")
+    return args
 
 
 class _Server:
@@ -107,7 +117,7 @@ class _Server:
         return encode_json(Kind.PORTS, seq, -1, 0.0, {
             "inputs": ports_to_json(self.component.inputs),
             "outputs": ports_to_json(self.component.outputs), "pid": os.getpid(),
-            "startup_s": {**self.ages, "ready": process_age_s()}})
+            "startup_s": {**self.ages, "ready": process_age_s(), "cpu": time.process_time()}})
 
     def _step(self, kind: int, seq: int, tick: int, t: float, data: bytes) -> bytes:
         assert self.component is not None
@@ -150,12 +160,27 @@ def _exit_when_master_gone(session: zenoh.Session, run_id: str) -> None:
     threading.Thread(target=poll, name="master-watch", daemon=True).start()
 
 
+def _launch(args: argparse.Namespace) -> PythonComponentLaunch | None:
+    """What to host: from the command line, or from one JSON line on stdin (None at EOF)."""
+    if not args.spec_stdin:
+        return PythonComponentLaunch(name=args.name, class_path=args.class_path,
+                                     parameters=json.loads(args.params),
+                                     period_ticks=args.period_ticks)
+    line = sys.stdin.readline()
+    if not line.strip():
+        return None
+    spec = json.loads(line)
+    return PythonComponentLaunch(name=args.name, class_path=str(spec["class_path"]),
+                                 parameters=dict(spec["parameters"]),
+                                 period_ticks=int(spec["period_ticks"]))
+
+
 def serve(args: argparse.Namespace) -> int:
     """Open the session, build the component, answer requests until STOP."""
     ages = {"imported": process_age_s()}
-    launch = PythonComponentLaunch(name=args.name, class_path=args.class_path,
-                                   parameters=json.loads(args.params),
-                                   period_ticks=args.period_ticks)
+    launch = _launch(args)
+    if launch is None:
+        return 0  # prestarted, then not needed: the master closed our stdin
     if args.zenoh_config:
         conf = zenoh.Config.from_json5(args.zenoh_config)
     else:

@@ -1,0 +1,114 @@
+"""Component processes started while `cosim run` loads the scenario: which are
+started, that the run uses exactly those, and that none is ever left behind."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+import cosim.prestart
+from cosim.cli import main
+from cosim.prestart import local_python_names, prestart_components
+from cosim.run import run_scenario
+from cosim.scenario import load_scenario
+from test_cli import GOOD
+
+TESTS_DIR = Path(__file__).resolve().parent
+
+pytestmark = pytest.mark.integration
+
+
+@pytest.fixture(autouse=True)
+def child_can_import_test_components(monkeypatch):
+    monkeypatch.setenv("PYTHONPATH", str(TESTS_DIR))
+
+
+def _gone(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    return False
+
+
+def test_local_python_names_from_a_raw_document():
+    document = {"components": {"vehicle": {"fmu": "Bicycle"},
+                               "controller": {"python": "a:B"},
+                               "far": {"python": "a:C", "host": "w1"},
+                               "near": {"python": "a:D", "host": "local"},
+                               "odd": "not a mapping"},
+                "sources": {"gust": {"kind": "step"}, "elsewhere": {"kind": "ramp", "host": "w2"}}}
+    assert local_python_names(document) == ["controller", "near", "gust"]
+    assert local_python_names(["a list"]) == [] and local_python_names({"components": 3}) == []
+
+
+def test_unreadable_or_componentless_files_start_nothing(tmp_path):
+    assert prestart_components(tmp_path / "missing.yaml") is None
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("components: [unclosed")
+    assert prestart_components(bad) is None
+    fmu_only = tmp_path / "fmu.yaml"
+    fmu_only.write_text("components:\n  vehicle: {fmu: Bicycle}\n")
+    assert prestart_components(fmu_only) is None
+
+
+def test_the_run_uses_the_prestarted_processes_and_matches_inproc(tmp_path):
+    path = tmp_path / "good.yaml"
+    path.write_text(GOOD)
+    early = prestart_components(path)
+    assert sorted(early.children) == ["gain", "ramp"]
+    pids = {name: child.pid for name, child in early.children.items()}
+    with open(f"/proc/{pids['gain']}/cmdline", "rb") as f:
+        argv = f.read().split(b"\0")
+    assert argv[argv.index(b"--name") + 1] == b"gain" and b"--spec-stdin" in argv
+    scenario = load_scenario(path)
+    result = run_scenario(scenario, tmp_path / "z", "zenoh", progress=False, prestart=early)
+    assert result.status == "ok"
+    manifest = json.loads(result.manifest.read_text())
+    assert manifest["run_id"] == early.run_id and manifest["live"]["endpoint"] == early.endpoint
+    assert {n: manifest["pids"][n] for n in pids} == pids
+    assert all(_gone(pid) for pid in pids.values())
+    reference = run_scenario(scenario, tmp_path / "i", "inproc", progress=False)
+    assert result.signals.read_bytes() == reference.signals.read_bytes()
+
+
+def test_processes_an_inproc_run_does_not_use_are_ended(tmp_path):
+    path = tmp_path / "good.yaml"
+    path.write_text(GOOD)
+    early = prestart_components(path)
+    pids = [child.pid for child in early.children.values()]
+    result = run_scenario(load_scenario(path), tmp_path / "i", "inproc", progress=False,
+                          prestart=early)
+    assert result.status == "ok" and all(_gone(pid) for pid in pids)
+
+
+def test_a_prestarted_process_whose_stdin_closes_exits_by_itself(tmp_path):
+    path = tmp_path / "good.yaml"
+    path.write_text(GOOD)
+    early = prestart_components(path)
+    try:
+        for child in early.children.values():
+            child.popen.stdin.close()
+        assert [child.popen.wait(timeout=30) for child in early.children.values()] == [0, 0]
+    finally:
+        early.close()
+
+
+def test_a_scenario_error_ends_the_prestarted_processes(tmp_path, monkeypatch, capsys):
+    started = []
+
+    def recording(path):
+        early = prestart_components(path)
+        started.append(early)
+        return early
+
+    monkeypatch.setattr(cosim.prestart, "prestart_components", recording)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(GOOD.replace("tick: 0.01", "tick: 0.01\ncolour: red"))
+    assert main(["run", str(bad), "--out", str(tmp_path / "run")]) == 2
+    assert "colour" in capsys.readouterr().err
+    assert len(started) == 1 and sorted(started[0].children) == ["gain", "ramp"]
+    assert all(_gone(child.pid) for child in started[0].children.values())
