@@ -230,11 +230,11 @@ class Recorder:
         """Tell the writer the spools are complete and wait; why its CSV is not trusted, or None."""
         writer = self._writer
         assert writer is not None and writer.stdin is not None
-        try:
-            writer.stdin.write(b"close\n")
-            writer.stdin.close()
-        except OSError:
-            pass  # it died: its exit status says so below
+        for action in (lambda: writer.stdin.write(b"close\n"), writer.stdin.close):
+            try:
+                action()
+            except OSError:
+                pass  # it died: its exit status says so below
         writer.stdin = None  # closed: communicate() must not flush it
         if not _wait_while_progressing(writer, [t.header.csv_path for t in self._tables]):
             return f"CSV writer process made no progress for {WRITER_STALL_S:g} s"

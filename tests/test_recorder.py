@@ -377,3 +377,33 @@ def test_a_repeated_row_reuses_its_text_only_when_bit_identical():
     formatter = RowFormatter(3)
     assert formatter.format(data[:48]) + formatter.format(data[48:]) == expected  # split stream
     assert format_rows(np.array([1.0, 2.0, 2.0]).tobytes(), 1) == "1.0\n2.0\n2.0\n"
+
+
+def test_a_stalled_writer_is_killed_and_the_csv_rebuilt(tmp_path, monkeypatch):
+    import cosim.recorder
+
+    monkeypatch.setattr(cosim.recorder, "WRITER_STALL_S", 1.0)
+
+    class StopWriter:
+        def begin(self, master):
+            self.recorder = next(o for o in master.observers if isinstance(o, Recorder))
+
+        def after_tick(self, tick, t, values, arrays):
+            if tick == 20:
+                os.kill(self.recorder.writer_pid, signal.SIGSTOP)
+
+    master, snaps = _run(tmp_path, ticks=100, flush_interval=0.0, extra=[StopWriter()])
+    assert snaps.recorder.writer_problem == "CSV writer process made no progress for 1 s"
+    assert not _writer_processes(tmp_path)
+    for name, expected in expected_files(master, snaps).items():
+        assert (tmp_path / name).read_bytes() == expected, name
+
+
+def test_a_writer_that_cannot_start_leaves_the_conversion_to_close(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(sys, "executable", str(tmp_path / "no-python"))
+    master, snaps = _run(tmp_path / "run", ticks=40, flush_interval=0.0)
+    assert snaps.recorder.writer_pid is None
+    assert snaps.recorder.writer_problem.startswith("CSV writer process not started:")
+    assert "CSV files rebuilt from the spools" in capsys.readouterr().err
+    for name, expected in expected_files(master, snaps).items():
+        assert (tmp_path / "run" / name).read_bytes() == expected, name
