@@ -105,7 +105,7 @@ class StepTimer:
 
 
 def timer_cost(calls: int = 20000) -> tuple[float, float]:
-    """(time a StepTimer reports, time it adds to the caller's wall clock), per call of an empty step."""
+    """(time a StepTimer reports, time it adds to its caller's time), per call of an empty step."""
     class Empty:
         def step(self, tick, t, inputs):
             return inputs
@@ -141,7 +141,7 @@ def build_master(prepared, hosted: dict) -> Master:
 
 
 def run_once(prepared, timed: bool) -> tuple[float, dict[str, tuple[float, int]]]:
-    """One run: wall seconds of the tick loop and, if timed, (seconds, calls) inside each host's step."""
+    """One run: seconds (CLOCK) of the tick loop and, if timed, (seconds, calls) inside each host's step."""
     hosted = build_hosts(prepared)
     timers = {name: StepTimer(comp) for name, comp in hosted.items()} if timed else {}
     master = build_master(prepared, hosted)
