@@ -12,7 +12,7 @@ set -eu
 dir=$1; name=$2; shift 2
 mkdir -p "$dir"
 if [ ! -f "$dir/ca.pem" ]; then
-    openssl req -x509 -newkey rsa:2048 -nodes -days 30 -subj "/CN=cosim test CA" \
+    openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -days 30 -subj "/CN=cosim test CA" \
         -keyout "$dir/ca-key.pem" -out "$dir/ca.pem" 2>/dev/null
 fi
 san=""
@@ -23,7 +23,7 @@ for address in "$@" localhost 127.0.0.1; do
     esac
     san="${san:+$san,}$entry"
 done
-openssl req -newkey rsa:2048 -nodes -subj "/CN=$name" \
+openssl req -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -subj "/CN=$name" \
     -keyout "$dir/$name-key.pem" -out "$dir/$name.csr" 2>/dev/null
 printf 'subjectAltName=%s\nbasicConstraints=CA:FALSE\nkeyUsage=digitalSignature,keyEncipherment\nextendedKeyUsage=serverAuth,clientAuth\n' "$san" > "$dir/$name.ext"
 openssl x509 -req -in "$dir/$name.csr" -CA "$dir/ca.pem" -CAkey "$dir/ca-key.pem" \
