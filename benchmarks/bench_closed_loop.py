@@ -35,6 +35,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from cosim.errors import UserError  # noqa: E402
 from cosim.fmu_component import FmuComponent  # noqa: E402
 from cosim.inproc import InprocComponent  # noqa: E402
 from cosim.master import Master  # noqa: E402
@@ -74,7 +75,7 @@ def write_scenario(folder: Path, seconds: float, controller: str, manoeuvre: str
             "vehicle": {"fmu": "Vehicle8DOF", "parameters": {"vx0": 10.0, "cx": 0.42}},
             "controller": {"python": python, "period": 0.01, "parameters": parameters},
             "planner": {"python": "controllers.planner:Planner", "period": 0.1, "parameters": {
-                "road": {"builder": "two_lane", "length": 100.0 + 12.0 * seconds, "radius": 150.0},
+                "road": {"builder": "two_lane", "length": max(400.0, 100.0 + 12.0 * seconds), "radius": 150.0},
                 "lane": 0, "manoeuvre": MANOEUVRES[manoeuvre],
                 "speed": {"v_max": 12.0, "a_lat_max": 2.0, "a_max": 1.0, "d_max": 1.5, "j_max": 1.0}}},
         },
@@ -178,6 +179,8 @@ def main() -> None:
                         help="cpu: this thread's CPU time (not inflated when other jobs take the core); "
                              "wall: elapsed time")
     args = parser.parse_args()
+    if not (args.seconds >= 0.1 and args.repeats >= 1):
+        parser.error(f"need --seconds >= 0.1 and --repeats >= 1, got {args.seconds} and {args.repeats}")
     global CLOCK
     CLOCK = CLOCKS[args.clock]
     with tempfile.TemporaryDirectory() as tmp:
@@ -204,4 +207,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except UserError as error:      # a scenario or component problem: the message, no traceback
+        sys.exit(f"bench_closed_loop: {error}")
