@@ -47,7 +47,8 @@ def test_print_summary_shows_both_tables(tmp_path: Path):
     text = console.export_text()
     lines = [" ".join(line.replace("│", " ").split()) for line in text.splitlines()]
     assert lines[0] == "run ok"
-    for expected in (f"folder {tmp_path}", "ticks 4500", "sim time 45 s", "wall time 2.25 s", "real-time factor 20",
+    for expected in (f"folder {tmp_path}", "ticks 4500", "sim time 45 s", "wall time 2.25 s",
+                     "real-time factor 20",
                      "time to tick 0 0.934 s", "realtime.factor 1", "realtime.deadline_misses 2",
                      "rms_yc 0.003486 m lateral error at the CG",
                      "controller.steps 4501 reported by controller"):

@@ -23,6 +23,9 @@ from cosim.component import Port, Value
 from cosim.zenoh_transport.wire import (HEADER, CodecError, Kind, decode_json,  # noqa: F401
                                         encode_json, header_tick)
 
+__all__ = ["HEADER", "CodecError", "Kind", "Layout", "decode_json", "encode_json",
+           "header_tick", "ports_from_json", "ports_to_json", "value_problem"]
+
 
 class Layout:
     """The packing of a fixed port list into float64 slots.

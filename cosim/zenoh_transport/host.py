@@ -207,7 +207,8 @@ class ZenohComponents:
                 self.session = zenoh.open(self._session_config(endpoint))
             except zenoh.ZError as exc:
                 if attempt + 1 == attempts:
-                    raise UserError(f"run {self.run_id!r}: cannot listen on {endpoint}: {exc}") from exc
+                    raise UserError(f"run {self.run_id!r}: cannot listen on "
+                                    f"{endpoint}: {exc}") from exc
                 continue
             self.endpoint = endpoint
             break

@@ -96,7 +96,8 @@ class _Server:
             try:
                 outputs = self._step_component(t, self._decode(data))
             except Exception as exc:  # user code: the master reports it with tick and time
-                return encode_json(Kind.ERROR, seq, tick, t, {"cause": describe_exception(exc)}), False
+                cause = describe_exception(exc)
+                return encode_json(Kind.ERROR, seq, tick, t, {"cause": cause}), False
             try:
                 return self._encode(_OUTPUTS, seq, tick, t, outputs, True), False
             except CodecError as exc:
