@@ -11,6 +11,7 @@ import pytest
 
 import cosim.prestart
 from cosim.cli import main
+from cosim.component import Component, Port
 from cosim.prestart import local_python_names, prestart_components
 from cosim.run import run_scenario
 from cosim.scenario import load_scenario
@@ -32,6 +33,33 @@ def _gone(pid: int) -> bool:
     except ProcessLookupError:
         return True
     return False
+
+
+class Weighted(Component):
+    """y = x * sum(weights): a component with a large parameter."""
+
+    inputs = (Port("x"),)
+    outputs = (Port("y"),)
+
+    def __init__(self, weights):
+        self.total = float(sum(weights))
+
+    def step(self, t, inputs):
+        return {"y": inputs["x"] * self.total}
+
+
+def test_a_spec_larger_than_a_pipe_reaches_its_process(tmp_path):
+    weights = [i / 7 for i in range(20000)]  # about 400 kB of JSON
+    path = tmp_path / "big.yaml"
+    path.write_text(GOOD.replace("test_cli:Gain", "test_run_prestart:Weighted")
+                    .replace("{k: 3.0}", "{weights: " + json.dumps(weights) + "}")
+                    .replace("duration: 0.5", "duration: 0.05"))
+    early = prestart_components(path)
+    scenario = load_scenario(path)
+    result = run_scenario(scenario, tmp_path / "z", "zenoh", progress=False, prestart=early)
+    reference = run_scenario(scenario, tmp_path / "i", "inproc", progress=False)
+    assert result.status == "ok"
+    assert result.signals.read_bytes() == reference.signals.read_bytes()
 
 
 def test_local_python_names_from_a_raw_document():

@@ -15,6 +15,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,6 +26,7 @@ from cosim.errors import UserError
 from cosim.launch import PythonComponentLaunch
 
 TAIL_CHARS = 800
+PIPE_SAFE_BYTES = 16384  # written at once into an empty pipe (Linux pipes hold 64 KiB)
 
 
 def _json_default(value: Any) -> Any:
@@ -109,12 +111,18 @@ class ChildProcess:
         if spec.name != self.name:
             raise ValueError(f"spec of {spec.name!r} sent to the process of {self.name!r}")
         line = json.dumps({"class_path": spec.class_path, "period_ticks": spec.period_ticks,
-                           "parameters": json.loads(_params_json(spec))})
+                           "parameters": json.loads(_params_json(spec))}).encode() + b"\n"
+        if len(line) <= PIPE_SAFE_BYTES:
+            self._write_spec(line)
+        else:  # the child reads only once its imports are done: do not block the master
+            threading.Thread(target=self._write_spec, args=(line,), daemon=True).start()
+
+    def _write_spec(self, line: bytes) -> None:
         try:
-            self.popen.stdin.write(line.encode() + b"\n")
+            self.popen.stdin.write(line)
             self.popen.stdin.close()
-        except OSError:
-            pass  # the process died: the handshake reports how
+        except (OSError, ValueError):
+            pass  # the process died (or was reaped): the handshake reports how
 
     def _start(self, name: str, argv: list[str], stdin: int) -> None:
         self.name = name
