@@ -109,6 +109,22 @@ static const char *variability_name(const VariableInfo *v)
     return v->variability == VARIABILITY_TUNABLE ? "tunable" : "fixed";
 }
 
+static const char *initial_attribute(const VariableInfo *v)
+{
+    if (v->causality == CAUSALITY_PARAMETER) return " initial=\"exact\"";
+    return v->causality == CAUSALITY_OUTPUT ? " initial=\"calculated\"" : "";
+}
+
+/* One <element attribute="N"/> line per output, N = its value reference + base
+   (FMI 2 lists outputs by 1-based variable index, FMI 3 by value reference). */
+static void print_outputs(const char *indent, const char *element, const char *attribute,
+                          unsigned base)
+{
+    for (size_t i = 0; i < MODEL.n_variables; ++i)
+        if (MODEL.variables[i].causality == CAUSALITY_OUTPUT)
+            printf("%s<%s %s=\"%u\"/>\n", indent, element, attribute, (unsigned)i + base);
+}
+
 /* Attributes common to FMI2 <Real> and FMI3 <Float64>: unit, start, min, max. */
 static void print_value_attributes(const VariableInfo *v)
 {
@@ -148,20 +164,14 @@ static void print_fmi2(int argc, char **argv)
                (unsigned)(i + 1), v->name, (unsigned)i);
         print_escaped(v->description);
         printf("\"\n      causality=\"%s\" variability=\"%s\"%s>\n      <Real",
-               causality_name(v->causality), variability_name(v),
-               v->causality == CAUSALITY_PARAMETER ? " initial=\"exact\""
-               : (v->causality == CAUSALITY_OUTPUT ? " initial=\"calculated\"" : ""));
+               causality_name(v->causality), variability_name(v), initial_attribute(v));
         print_value_attributes(v);
         puts("/>\n    </ScalarVariable>");
     }
     puts("  </ModelVariables>\n  <ModelStructure>\n    <Outputs>");
-    for (size_t i = 0; i < MODEL.n_variables; ++i)
-        if (MODEL.variables[i].causality == CAUSALITY_OUTPUT)
-            printf("      <Unknown index=\"%u\"/>\n", (unsigned)(i + 1));
+    print_outputs("      ", "Unknown", "index", 1);
     puts("    </Outputs>\n    <InitialUnknowns>");
-    for (size_t i = 0; i < MODEL.n_variables; ++i)
-        if (MODEL.variables[i].causality == CAUSALITY_OUTPUT)
-            printf("      <Unknown index=\"%u\"/>\n", (unsigned)(i + 1));
+    print_outputs("      ", "Unknown", "index", 1);
     puts("    </InitialUnknowns>\n  </ModelStructure>\n</fmiModelDescription>");
 }
 
@@ -183,19 +193,13 @@ static void print_fmi3(void)
         printf("    <Float64 name=\"%s\" valueReference=\"%u\" description=\"", v->name, (unsigned)i);
         print_escaped(v->description);
         printf("\"\n      causality=\"%s\" variability=\"%s\"%s", causality_name(v->causality),
-               variability_name(v),
-               v->causality == CAUSALITY_PARAMETER ? " initial=\"exact\""
-               : (v->causality == CAUSALITY_OUTPUT ? " initial=\"calculated\"" : ""));
+               variability_name(v), initial_attribute(v));
         print_value_attributes(v);
         puts("/>");
     }
     puts("  </ModelVariables>\n  <ModelStructure>");
-    for (size_t i = 0; i < MODEL.n_variables; ++i)
-        if (MODEL.variables[i].causality == CAUSALITY_OUTPUT)
-            printf("    <Output valueReference=\"%u\"/>\n", (unsigned)i);
-    for (size_t i = 0; i < MODEL.n_variables; ++i)
-        if (MODEL.variables[i].causality == CAUSALITY_OUTPUT)
-            printf("    <InitialUnknown valueReference=\"%u\"/>\n", (unsigned)i);
+    print_outputs("    ", "Output", "valueReference", 0);
+    print_outputs("    ", "InitialUnknown", "valueReference", 0);
     puts("  </ModelStructure>\n</fmiModelDescription>");
 }
 
