@@ -227,3 +227,13 @@ def test_metrics_section_is_typed(tmp_path):
     with pytest.raises(ScenarioError) as err:
         load_scenario(bad)
     assert "bad.yaml:10" in str(err.value) and "metrics.cone_radius" in str(err.value)
+
+
+def test_builtin_fmu_names_are_the_ones_fmu_build_can_build() -> None:
+    """The scenario's list is written out (it must not depend on fmus/ being present); keep it in step."""
+    from cosim import fmu_build
+    from cosim.scenario import BUILTIN_FMUS
+
+    buildable = {fmu_build.fmu_file_name(m, v).removesuffix(".fmu")
+                 for m in fmu_build.MODELS for v in (2, 3)}
+    assert set(BUILTIN_FMUS) == buildable and len(BUILTIN_FMUS) == len(buildable)
