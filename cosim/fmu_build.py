@@ -66,8 +66,9 @@ def fmi_include_dir() -> Path:
 def fmu_file_name(model: str, fmi_version: int) -> str:
     """File name of a built-in FMU: ``Model.fmu`` (FMI 2.0) or ``Model-fmi3.fmu``.
 
-    :param model: model folder name under fmus/, e.g. "Bicycle".
-    :param fmi_version: 2 or 3.
+    Args:
+        model: model folder name under fmus/, e.g. "Bicycle".
+        fmi_version: 2 or 3.
     """
     return f"{model}.fmu" if fmi_version == 2 else f"{model}-fmi3.fmu"
 
@@ -85,7 +86,8 @@ def _platform_dir(fmi_version: int) -> str:
 def model_sources(model_dir: Path) -> list[Path]:
     """All files that go into a model's FMU (framework + model folder), sorted.
 
-    :param model_dir: the model folder (holding variables.def and model.c).
+    Args:
+        model_dir: the model folder (holding variables.def and model.c).
     """
     model = model_dir.name
     files = [p for p in FRAMEWORK_DIR.iterdir()
@@ -122,9 +124,10 @@ def _includes(model_dir: Path) -> list[str]:
 def generate_model_description(model_dir: Path, fmi_version: int, work_dir: Path) -> str:
     """Compile the XML generator with the model's code and return its output.
 
-    :param model_dir: the model folder (holding variables.def and model.c).
-    :param fmi_version: 2 or 3.
-    :param work_dir: scratch folder for the generator executable.
+    Args:
+        model_dir: the model folder (holding variables.def and model.c).
+        fmi_version: 2 or 3.
+        work_dir: scratch folder for the generator executable.
     """
     model = model_dir.name
     exe = work_dir / "xmlgen"
@@ -183,11 +186,13 @@ def _write_fmu(path: Path, entries: dict[str, bytes]) -> None:
 def build_fmu(model: str, fmi_version: int, out_dir: Path) -> Path:
     """Compile one built-in model into a co-simulation FMU and return the .fmu path.
 
-    :param model: model folder name under fmus/ (one of MODELS), e.g. "Bicycle".
-    :param fmi_version: 2 (writes <model>.fmu) or 3 (writes <model>-fmi3.fmu).
-    :param out_dir: folder for the .fmu (created if missing).
-    :raises FmuBuildError: unknown model/version, compiler error (with gcc's
-        message) or a variable table the generator rejects.
+    Args:
+        model: model folder name under fmus/ (one of MODELS), e.g. "Bicycle".
+        fmi_version: 2 (writes <model>.fmu) or 3 (writes <model>-fmi3.fmu).
+        out_dir: folder for the .fmu (created if missing).
+    Raises:
+        FmuBuildError: unknown model/version, compiler error (with gcc's
+            message) or a variable table the generator rejects.
     """
     if model not in _find_models():
         raise FmuBuildError(f"unknown model {model!r}: no {FMUS_DIR / model / 'variables.def'}"
@@ -198,11 +203,13 @@ def build_fmu(model: str, fmi_version: int, out_dir: Path) -> Path:
 def build_fmu_from(model_dir: Path, fmi_version: int, out_dir: Path) -> Path:
     """Compile a model folder anywhere (e.g. a test or benchmark model) with the framework.
 
-    :param model_dir: folder holding variables.def and model.c; its name is the
-        model identifier.
-    :param fmi_version: 2 or 3.
-    :param out_dir: folder for the .fmu (created if missing).
-    :raises FmuBuildError: as build_fmu.
+    Args:
+        model_dir: folder holding variables.def and model.c; its name is the
+            model identifier.
+        fmi_version: 2 or 3.
+        out_dir: folder for the .fmu (created if missing).
+    Raises:
+        FmuBuildError: as build_fmu.
     """
     model_dir = Path(model_dir)
     model = model_dir.name
@@ -235,8 +242,10 @@ def build_fmu_from(model_dir: Path, fmi_version: int, out_dir: Path) -> Path:
 def build_all(out_dir: Path | None = None) -> list[Path]:
     """Build every model of MODELS as FMI 2.0 and FMI 3.0 FMUs.
 
-    :param out_dir: output folder; default <repo>/build/fmus.
-    :returns: the .fmu paths, per model the FMI 2.0 one then the FMI 3.0 one.
+    Args:
+        out_dir: output folder; default <repo>/build/fmus.
+    Returns:
+        the .fmu paths, per model the FMI 2.0 one then the FMI 3.0 one.
     """
     out = Path(out_dir) if out_dir is not None else DEFAULT_OUT_DIR
     return [build_fmu(m, v, out) for m in _find_models() for v in (2, 3)]
@@ -252,9 +261,11 @@ def _parse_fmu_name(name: str) -> tuple[str, int]:
 def ensure_fmu(name: str, out_dir: Path | None = None) -> Path:
     """Return a built-in FMU, building it when missing or older than its sources.
 
-    :param name: "Bicycle", "Bicycle-fmi3" (with or without ".fmu"), etc.
-    :param out_dir: output folder; default <repo>/build/fmus.
-    :raises FmuBuildError: unknown name or a failed build.
+    Args:
+        name: "Bicycle", "Bicycle-fmi3" (with or without ".fmu"), etc.
+        out_dir: output folder; default <repo>/build/fmus.
+    Raises:
+        FmuBuildError: unknown name or a failed build.
     """
     model, version = _parse_fmu_name(name)
     if model not in _find_models():
