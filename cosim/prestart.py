@@ -3,8 +3,9 @@
 A component process spends most of its start-up loading numpy and zenoh,
 which does not depend on the scenario. `prestart_components` reads the
 scenario file as plain YAML (no validation: that comes after), starts one
-process per local Python component and source with `ChildProcess.prestart`,
-and `run_scenario` later hands each its class, parameters and period. A
+process per local Python component and source with `ChildProcess.prestart`
+(which also preloads the module its class path names), and `run_scenario`
+later hands each its class, parameters and period. A
 process the validated scenario does not use (another transport, a component
 placed on a worker, a name changed by --set) is ended; `Prestart.close` ends
 every one that is left, whatever happened.
@@ -41,24 +42,42 @@ class Prestart:
         reap(list(self.children.values()), GRACE_S)
 
 
+SOURCES_MODULE = "cosim.sources"  # where every source kind's class lives (SOURCE_CLASSES)
+
+
+def local_python_components(document: Any) -> dict[str, str | None]:
+    """Name -> module to preload, of the Python components and sources a raw
+    scenario runs locally (module None when the class path is not a string).
+
+    Args:
+        document: the scenario file parsed as plain YAML.
+    """
+    if not isinstance(document, dict):
+        return {}
+    found: dict[str, str | None] = {}
+    for section in ("components", "sources"):
+        entries = document.get(section) or {}
+        if not isinstance(entries, dict):
+            continue
+        for name, spec in entries.items():
+            if not isinstance(spec, dict) or spec.get("host") not in (None, "local"):
+                continue
+            if section == "sources":
+                found[str(name)] = SOURCES_MODULE
+            elif "python" in spec:
+                path = spec["python"]
+                module = path.partition(":")[0] if isinstance(path, str) else ""
+                found[str(name)] = module or None
+    return found
+
+
 def local_python_names(document: Any) -> list[str]:
     """Names of the Python components and sources a raw scenario runs locally.
 
     Args:
         document: the scenario file parsed as plain YAML.
     """
-    if not isinstance(document, dict):
-        return []
-    names = []
-    for section, is_python in (("components", lambda spec: "python" in spec),
-                               ("sources", lambda spec: True)):
-        entries = document.get(section) or {}
-        if not isinstance(entries, dict):
-            continue
-        names += [str(name) for name, spec in entries.items()
-                  if isinstance(spec, dict) and is_python(spec)
-                  and spec.get("host") in (None, "local")]
-    return names
+    return list(local_python_components(document))
 
 
 def prestart_components(scenario_file: str | Path) -> Prestart | None:
@@ -77,7 +96,8 @@ def prestart_components(scenario_file: str | Path) -> Prestart | None:
     try:
         text = Path(scenario_file).read_text()
         document = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
-        names = [check_key_chunk(n, "component name") for n in local_python_names(document)]
+        found = local_python_components(document)
+        names = [check_key_chunk(n, "component name") for n in found]
     except (OSError, ValueError, yaml.YAMLError):
         return None  # loading the scenario reports it properly
     if not names or len(set(names)) != len(names):
@@ -86,7 +106,7 @@ def prestart_components(scenario_file: str | Path) -> Prestart | None:
     try:
         for name in names:
             prestart.children[name] = ChildProcess.prestart(name, prestart.run_id,
-                                                            prestart.endpoint)
+                                                            prestart.endpoint, found[name])
     except BaseException:
         prestart.close()
         raise

@@ -12,7 +12,7 @@ import pytest
 import cosim.prestart
 from cosim.cli import main
 from cosim.component import Component, Port
-from cosim.prestart import local_python_names, prestart_components
+from cosim.prestart import local_python_components, local_python_names, prestart_components
 from cosim.run import run_scenario
 from cosim.scenario import load_scenario
 from test_cli import GOOD
@@ -70,6 +70,9 @@ def test_local_python_names_from_a_raw_document():
                                "odd": "not a mapping"},
                 "sources": {"gust": {"kind": "step"}, "elsewhere": {"kind": "ramp", "host": "w2"}}}
     assert local_python_names(document) == ["controller", "near", "gust"]
+    assert local_python_components(document) == {"controller": "a", "near": "a",
+                                                  "gust": "cosim.sources"}
+    assert local_python_components({"components": {"c": {"python": 3}}}) == {"c": None}
     assert local_python_names(["a list"]) == [] and local_python_names({"components": 3}) == []
 
 
@@ -92,6 +95,7 @@ def test_the_run_uses_the_prestarted_processes_and_matches_inproc(tmp_path):
     with open(f"/proc/{pids['gain']}/cmdline", "rb") as f:
         argv = f.read().split(b"\0")
     assert argv[argv.index(b"--name") + 1] == b"gain" and b"--spec-stdin" in argv
+    assert argv[argv.index(b"--preload") + 1] == b"test_cli"
     scenario = load_scenario(path)
     result = run_scenario(scenario, tmp_path / "z", "zenoh", progress=False, prestart=early)
     assert result.status == "ok"

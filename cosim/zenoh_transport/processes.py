@@ -87,18 +87,21 @@ class ChildProcess:
         self._start(spec.name, argv, subprocess.DEVNULL)
 
     @classmethod
-    def prestart(cls, name: str, run_id: str, endpoint: str) -> "ChildProcess":
+    def prestart(cls, name: str, run_id: str, endpoint: str,
+                 preload: str | None = None) -> "ChildProcess":
         """Start the process of component `name` before its class, parameters and
-        period are known: it loads its modules (numpy, zenoh), then waits for
-        `send_spec` on its stdin (and exits quietly if stdin closes first).
+        period are known: it loads its modules (numpy, zenoh, `preload`), then
+        waits for `send_spec` on its stdin (and exits quietly if stdin closes first).
 
         Args:
             name: the component's name (on the command line, for ps).
             run_id: the run's id.
             endpoint: the master's listen endpoint the child will connect to.
+            preload: a module the component's class probably lives in, or None.
         """
         child = cls.__new__(cls)
-        child._start(name, [*_runner_argv(name, run_id, endpoint), "--spec-stdin"],
+        extra = ["--preload", preload] if preload else []
+        child._start(name, [*_runner_argv(name, run_id, endpoint), "--spec-stdin", *extra],
                      subprocess.PIPE)
         return child
 

@@ -18,6 +18,7 @@ when the master's liveliness token disappears.
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import signal
@@ -60,6 +61,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--spec-stdin", action="store_true",
                         help="read class, parameters and period as one JSON line on stdin "
                              "(a process started before the master knew them)")
+    parser.add_argument("--preload", default=None,
+                        help="with --spec-stdin: a module to import while waiting for the spec")
     args = parser.parse_args(argv)
     if not args.class_path and not args.spec_stdin:
         parser.error("give --class or --spec-stdin")
@@ -167,6 +170,11 @@ def _launch(args: argparse.Namespace) -> PythonComponentLaunch | None:
         return PythonComponentLaunch(name=args.name, class_path=args.class_path,
                                      parameters=json.loads(args.params),
                                      period_ticks=args.period_ticks)
+    if args.preload:
+        try:
+            importlib.import_module(args.preload)
+        except Exception:  # noqa: BLE001 - a guess: the real import names any problem
+            pass
     line = sys.stdin.readline()
     if not line.strip():
         return None
