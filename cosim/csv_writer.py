@@ -9,7 +9,9 @@ every float written by `repr` (the shortest text that reads back to the same
 float64). It does so either while the run goes on, in a separate process that
 tails the spool (`main`, so the text formatting runs on the other core), or in
 one pass (`rebuild_csv`, for the recorder's fallback and `cosim recover`).
-A partial last row in a spool (a master killed mid-write) is ignored.
+A partial last row in a spool (a master killed mid-write) is ignored. A row
+whose values are bit-identical to the previous row's (a held planner window)
+reuses that row's text: formatting floats is the whole cost of this module.
 
 Only the standard library is imported, so the process starts fast; it is run
 as a script (`python -S csv_writer.py HEADER...`). Protocol: the CSV files
