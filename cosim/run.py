@@ -256,9 +256,11 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
 
 def _placed_fmu_launches(scenario: Any, placement: dict[str, str]) -> list[PythonComponentLaunch]:
     """FMU components placed on workers, as launches of the remote FMU host."""
+    specs = scenario.fmu_components()
+    if not set(specs) & set(placement):
+        return []  # and no import: numpy must not load before the processes are spawned
     from cosim.fmu_remote import fmu_launch
 
-    specs = scenario.fmu_components()
     plans = [_plan_fmu(scenario, name, spec) for name, spec in specs.items() if name in placement]
     return [fmu_launch(p.name, p.path, dict(specs[p.name].variables), p.parameters,
                        p.period_ticks) for p in plans]

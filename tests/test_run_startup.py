@@ -4,6 +4,7 @@ start-up steps, lazy loading before the spawn, and the live observer's cost."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import time
@@ -69,6 +70,27 @@ def test_the_run_path_loads_no_numpy_or_fmpy_before_the_spawn():
     assert out.strip() == "[]"
 
 
+SPAWN_PROBE = """
+import sys
+from cosim.run import run_scenario
+from cosim.scenario import load_scenario
+seen = []
+run_scenario(load_scenario(sys.argv[1]), sys.argv[2], "zenoh", progress=False,
+             on_live=lambda run_id, endpoint: seen.append(sorted(
+                 m for m in ("numpy", "fmpy", "cosim.component") if m in sys.modules)))
+print(seen)
+"""
+
+
+def test_a_zenoh_run_spawns_its_processes_before_loading_numpy(tmp_path):
+    path = _scenario(tmp_path, GOOD.replace("{k: 3.0}", "{k: 3.0}\n    period: 0.01"))
+    out = subprocess.run([sys.executable, "-c", SPAWN_PROBE, str(path), str(tmp_path / "run")],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120,
+                         env={**os.environ, "PYTHONPATH": str(TESTS_DIR)})
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[[]]"  # on_live runs right after the spawn
+
+
 def _scenario(tmp_path: Path, text: str) -> Path:
     path = tmp_path / "s.yaml"
     path.write_text(text)
@@ -124,7 +146,7 @@ def test_start_up_marks_in_the_manifest_are_in_order(tmp_path, monkeypatch):
             processes = manifest["startup_processes_s"]
             assert sorted(processes) == ["gain", "ramp"]
             for ages in processes.values():
-                order = [ages[k] for k in ("imported", "session", "built", "ready")]
+                order = [ages[k] for k in ("imported", "spec", "session", "built", "ready")]
                 assert order == sorted(order) and order[0] > 0 and ages["cpu"] > 0
         values = [marks[k] for k in steps]
         assert values == sorted(values) and values[0] > 0

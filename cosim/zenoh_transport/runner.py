@@ -190,6 +190,7 @@ def serve(args: argparse.Namespace) -> int:
     launch = _launch(args)
     if launch is None:
         return 0  # prestarted, then not needed: the master closed our stdin
+    ages["spec"] = process_age_s()  # = "imported" unless prestarted (then: spec received)
     if args.zenoh_config:
         conf = zenoh.Config.from_json5(args.zenoh_config)
     else:
