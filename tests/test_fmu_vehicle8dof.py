@@ -16,13 +16,16 @@ import pytest
 fmpy = pytest.importorskip("fmpy")
 from fmpy.fmi1 import FMICallException  # noqa: E402
 
-from fmu_fixtures import built_fmu  # noqa: E402
+from cosim.fmu_build import FMUS_DIR  # noqa: E402
+from fmu_fixtures import built_fmu, parse_variables_def  # noqa: E402
 
 G = 9.81
 INPUTS = ("delta", "torque", "wind_fx", "wind_fy", "mu")
 # Table I defaults and this model's defaults (fmus/Vehicle8DOF/variables.def).
 M, IZ, C_F, C_R, L_F, L_R, I_Y, R_W = 1500.0, 2454.0, 57500.0, 57500.0, 1.006, 1.462, 1.2, 0.3
+M_UNSPRUNG, H_CG, H_RC, K_ROLL = 200.0, 0.55, 0.1, 88000.0
 WHEELBASE = L_F + L_R
+VARIABLES_DEF = FMUS_DIR / "Vehicle8DOF" / "variables.def"
 M_E = M + 4.0 * I_Y / R_W**2          # equivalent mass with the four wheel inertias
 
 
@@ -60,6 +63,14 @@ def simulate(fmu_dir, stop_time, params=None, inputs=None, times=None):
     for name in result.dtype.names:
         assert np.all(np.isfinite(result[name])), f"output {name} is not finite"
     return result
+
+
+def test_the_expectations_use_the_models_defaults():
+    """The constants above are the defaults of fmus/Vehicle8DOF/variables.def."""
+    table = {row["name"]: row["start"] for row in parse_variables_def(VARIABLES_DEF)}
+    constants = {"m": M, "Iz": IZ, "Cf": C_F, "Cr": C_R, "lf": L_F, "lr": L_R, "iy": I_Y,
+                 "Rw": R_W, "m_unsprung": M_UNSPRUNG, "h_cg": H_CG, "h_rc": H_RC, "k_roll": K_ROLL}
+    assert {name: table[name] for name in constants} == constants
 
 
 def understeer_gradient(mu=1.0, m=M):
@@ -118,9 +129,9 @@ def test_wheel_lift_never_creates_extra_grip(fmu_dir):
 
 def roll_gradient_analytic(m=M):
     """phi / ay = ms e / (k_roll - ms g e) with the default suspension, rad per m/s2."""
-    ms, h_cg, h_rc, k_roll = m - 200.0, 0.55, 0.1, 88000.0   # ms = m - m_unsprung
-    e = (m * h_cg - (m - ms) * R_W) / ms - h_rc
-    return ms * e / (k_roll - ms * G * e)
+    ms = m - M_UNSPRUNG
+    e = (m * H_CG - (m - ms) * R_W) / ms - H_RC
+    return ms * e / (K_ROLL - ms * G * e)
 
 
 @pytest.mark.parametrize("delta", [0.015, -0.015])
