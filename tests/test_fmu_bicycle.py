@@ -11,12 +11,20 @@ import math
 import numpy as np
 import pytest
 
-from fmu_fixtures import Plant, built_fmu, fmu_dir  # noqa: F401
+from cosim.fmu_build import FMUS_DIR
+from fmu_fixtures import Plant, built_fmu, fmu_dir, parse_variables_def  # noqa: F401
 
 M, IZ, CF, CR, LF, LR, IY, RW = 1500.0, 2454.0, 57500.0, 57500.0, 1.006, 1.462, 1.2, 0.3
 L = LF + LR
 ME = M + IY / RW**2
 H = 0.01
+
+
+def test_the_expectations_use_the_models_defaults():
+    """The constants above are the defaults of fmus/Bicycle/variables.def."""
+    table = {row["name"]: row["start"] for row in parse_variables_def(FMUS_DIR / "Bicycle" / "variables.def")}
+    constants = {"m": M, "Iz": IZ, "Cf": CF, "Cr": CR, "lf": LF, "lr": LR, "iy": IY, "Rw": RW}
+    assert {name: table[name] for name in constants} == constants
 
 
 @pytest.fixture
