@@ -112,7 +112,8 @@ class ZenohComponents:
         self._seq = 0
         self._failed: dict[str, ComponentFailure] = {}  # by component: raised again on reuse
         # start-up marks of each process, seconds since its start: "imported" (runner
-        # modules loaded), "session" (Zenoh open), "built" (component), "ready" (handshake)
+        # modules loaded), "spec" (its class and parameters known), "session" (Zenoh
+        # open), "built" (component), "ready" (handshake); "cpu": CPU seconds by then
         self.process_startup_s: dict[str, dict[str, float | None]] = {}
 
     # ----------------------------------------------------------------- lifecycle
