@@ -98,16 +98,6 @@ def test_missing_signals_give_notes_not_errors(tmp_path):
     assert len(fig.axes) == 9
 
 
-def test_draw_figures_writes_a_deterministic_png(tmp_path):
-    run = lane_change_run(tmp_path / "r")
-    (png,) = draw_figures(run)
-    assert png == run / "figure_manoeuvre.png"
-    first = png.read_bytes()
-    assert first[:8] == b"\x89PNG\r\n\x1a\n"
-    draw_figures(run)
-    assert png.read_bytes() == first
-
-
 def test_compare_two_runs_overlays_and_tabulates(tmp_path):
     a = lane_change_run(tmp_path / "a" / "run")
     b = lane_change_run(tmp_path / "b" / "run", offset=0.2)
@@ -154,12 +144,21 @@ def _cli():
     return app, CliRunner()
 
 
-def test_cli_plot_and_its_error(tmp_path):
-    app, runner = _cli()
+def test_draw_figures_and_cli_plot_write_the_same_deterministic_png(tmp_path):
     run = lane_change_run(tmp_path / "r")
-    result = runner.invoke(app, ["plot", str(run), "--layout", "track"])
+    (png,) = draw_figures(run)
+    assert png == run / "figure_manoeuvre.png"
+    first = png.read_bytes()
+    assert first[:8] == b"\x89PNG\r\n\x1a\n"
+    app, runner = _cli()
+    result = runner.invoke(app, ["plot", str(run), "--layout", "manoeuvre"])  # the same bytes again
     assert result.exit_code == 0, result.output
-    assert (run / "figure_track.png").is_file() and "figure_track.png" in result.output
+    assert f"figure: {png}" in result.output
+    assert png.read_bytes() == first
+
+
+def test_cli_plot_error_is_one_line_without_traceback(tmp_path):
+    app, runner = _cli()
     result = runner.invoke(app, ["plot", str(tmp_path / "missing")])
     assert result.exit_code == 2 and "no such run folder" in result.output
     assert "Traceback" not in result.output
