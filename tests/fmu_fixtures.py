@@ -30,9 +30,13 @@ def fmu_dir(tmp_path_factory) -> Path:
 def built_fmu(out_dir: Path, model: str, version: int) -> tuple[Path, str]:
     """Build (once per session) and extract a model; return (fmu path, unzip dir).
 
-    :param out_dir: folder for the .fmu files.
-    :param model: model folder name under fmus/.
-    :param version: 2 or 3.
+    The cache is per (model, version) for the whole session: a later call with
+    another `out_dir` gets the FMU built first.
+
+    Args:
+        out_dir: folder for the .fmu files.
+        model: model folder name under fmus/.
+        version: 2 or 3.
     """
     key = (model, version)
     if key not in _CACHE:
@@ -45,8 +49,10 @@ def built_fmu(out_dir: Path, model: str, version: int) -> tuple[Path, str]:
 class Plant:
     """One instance of an FMU (FMI 2.0 or 3.0), with captured log messages.
 
-    :param path: the .fmu file; :param unzip_dir: where it was extracted;
-    :param logging_on: FMI loggingOn (debug messages).
+    Args:
+        path: the .fmu file.
+        unzip_dir: where it was extracted.
+        logging_on: FMI loggingOn (debug messages).
     """
 
     def __init__(self, path: Path, unzip_dir: str, logging_on: bool = False):
@@ -121,8 +127,11 @@ class Plant:
     def run(self, inputs, n_steps: int, h: float = 0.01, k0: int = 0) -> np.ndarray:
         """Step n_steps from tick k0 (t = k h); return outputs, one row per tick.
 
-        :param inputs: dict of constant inputs, or a function k -> dict.
-        :returns: array (n_steps + 1, len(outputs)); row 0 is before the first step.
+        Args:
+            inputs: dict of constant inputs, or a function k -> dict.
+            n_steps: steps to take; h: step size, s; k0: first tick.
+        Returns:
+            array (n_steps + 1, len(outputs)); row 0 is before the first step.
         """
         rows = [self.get(self.outputs)]
         for k in range(k0, k0 + n_steps):

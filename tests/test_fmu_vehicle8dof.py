@@ -44,11 +44,12 @@ def bicycle_dir(tmp_path_factory):
 def simulate(fmu_dir, stop_time, params=None, inputs=None, times=None):
     """Run the FMU with a 10 ms communication step and return the result array.
 
-    :param fmu_dir: unzipped FMU folder.
-    :param stop_time: end time, s.
-    :param params: start values of parameters, by name.
-    :param inputs: per input name, a constant or an array over `times`.
-    :param times: time grid of array inputs (default: [0, stop_time]).
+    Args:
+        fmu_dir: unzipped FMU folder.
+        stop_time: end time, s.
+        params: start values of parameters, by name.
+        inputs: per input name, a constant or an array over `times`.
+        times: time grid of array inputs (default: [0, stop_time]).
     """
     times = np.array([0.0, stop_time] if times is None else times, dtype=float)
     values = {"delta": 0.0, "torque": 0.0, "wind_fx": 0.0, "wind_fy": 0.0, "mu": 1.0}
