@@ -11,9 +11,11 @@ knots from that data and blend the tiny mismatch of the integral linearly over
 the interval, so the path is continuous in any case.
 
 Paths come from line/arc/clothoid segments, from a curvature profile kappa(s),
-or from waypoints (C2 cubic spline through them); `Path.from_spec` reads the
-YAML form. A closed path wraps s modulo its length; an open path extends along
-its end tangents beyond [0, L]. Angles in specs are degrees; everything else SI.
+or from waypoints (C2 cubic spline through them, see `controllers.spline`);
+`Path.from_spec` reads the YAML form. A closed path wraps s modulo its length;
+an open path extends along its end tangents beyond [0, L]. Angles in specs are
+degrees; everything else SI. `SpecError` and `spec_number` live in
+`controllers.spec` and are importable from here too.
 """
 
 from __future__ import annotations
