@@ -170,9 +170,7 @@ def _cell(value: float | int | None) -> str:
     """A metric as table text ("" when missing)."""
     if value is None:
         return ""
-    if isinstance(value, int) or float(value).is_integer() and abs(value) < 1e6:
-        return str(int(value)) if isinstance(value, int) else f"{value:.4g}"
-    return f"{value:.4g}"
+    return str(value) if isinstance(value, int) else f"{value:.4g}"
 
 
 def write_tables(rows: Sequence[MatrixRow], out: Path) -> tuple[Path, Path]:
