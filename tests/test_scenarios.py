@@ -81,6 +81,22 @@ def test_every_controller_swap_validates():
         validate_scenario(scenario)
 
 
+@pytest.mark.parametrize("name", list(CONTROLLERS)[1:])
+def test_swapping_one_line_of_the_file_swaps_the_controller(tmp_path, name):
+    """Replace the active controller line by a commented one: the file loads and wires."""
+    text = (SCENARIOS / "obstacle_avoidance.yaml").read_text()
+    active = "  " + controller_line(next(iter(CONTROLLERS)))
+    assert text.count(active + "\n") == 1
+    swapped = tmp_path / "obstacle_avoidance.yaml"
+    swapped.write_text(text.replace(active + "\n", "  " + controller_line(name) + "\n"))
+    changed = [a for a, b in zip(text.splitlines(), swapped.read_text().splitlines()) if a != b]
+    assert len(changed) == 1
+    scenario = load_scenario(swapped)
+    assert scenario.components["controller"].python == CONTROLLERS[name]["python"]
+    assert scenario.components["controller"].parameters == CONTROLLERS[name]["parameters"]
+    validate_scenario(scenario)
+
+
 # ---- ISO 3888-2 layout --------------------------------------------------------------
 
 
