@@ -150,10 +150,15 @@ def watch(
         if every < 1 or count < 0:
             raise UserError(f"--every must be >= 1 and --count >= 0, got {every} and {count}")
         run_id, endpoint = resolve_target(target, connect, MANIFEST_WAIT_S)
-        print(f"watching run {run_id} at {endpoint} (Ctrl-C to stop)", file=sys.stderr,
+        what = "every run" if run_id == "*" else f"run {run_id}"
+        print(f"watching {what} at {endpoint} (Ctrl-C to stop)", file=sys.stderr,
               flush=True)
+        printed = 0
         for line in watch_lines(run_id, endpoint, signals, every, count):
             print(line, flush=True)
+            printed += 1
+        if not count or printed < count:
+            print(f"run {run_id} ended", file=sys.stderr, flush=True)
     except (UserError, TimeoutError) as error:
         print(f"error: {error}", file=sys.stderr, flush=True)
         raise typer.Exit(EXIT_USER_ERROR) from None

@@ -96,6 +96,7 @@ def test_watching_a_run_from_a_second_process_prints_the_recorded_values(tmp_pat
         run.kill()
     assert watcher.returncode == 0, watcher.stderr
     assert f"watching run {run_id} at {endpoint}" in watcher.stderr
+    assert "ended" not in watcher.stderr  # it stopped after --count lines
     live = json.loads((out / "manifest.json").read_text())["live"]
     assert live == {"run_id": run_id, "endpoint": endpoint}
     names, data = read_signals(out / "signals.csv")
