@@ -24,7 +24,7 @@ from cosim.cli import main
 from cosim.recorder import read_signals
 from tests import netns
 
-pytestmark = [pytest.mark.integration,
+pytestmark = [pytest.mark.integration, pytest.mark.netns,
               pytest.mark.skipif(netns.unavailable() is not None,
                                  reason=f"network namespaces: {netns.unavailable()}")]
 
