@@ -19,22 +19,16 @@ from typing import Any, Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
+from cosim.cli_common import user_error_exit
 from cosim.errors import UserError
 
 DEFAULT_TRANSPORT = "zenoh"  # DESIGN.md: each Python component its own OS process
 EXIT_FAILED_RUN = 1
-EXIT_USER_ERROR = 2
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Co-simulation of closed-loop vehicle control (FMU plants, Python components).")
-
-
-def _fail(error: UserError) -> typer.Exit:
-    """Print a user error on stderr; the Exit to raise (status 2)."""
-    Console(stderr=True, highlight=False, soft_wrap=True).print(f"[red]error:[/red] {error}",
-                                                                 markup=True)
-    return typer.Exit(EXIT_USER_ERROR)
 
 
 def default_run_dir(name: str, now: datetime.datetime | None = None) -> Path:
@@ -96,7 +90,7 @@ def run(
                                   deadline_s=deadline, clock=clock, on_live=_print_live,
                                   prestart=early)
     except UserError as error:
-        raise _fail(error) from None
+        raise user_error_exit(error) from None
     finally:
         if early is not None:
             early.close()
@@ -106,7 +100,7 @@ def run(
     print_summary(result)
     if result.status != "ok":
         Console(stderr=True, highlight=False, soft_wrap=True).print(
-            f"[red]run failed:[/red] {result.error}", markup=True)
+            f"[red]run failed:[/red] {escape(str(result.error))}", markup=True)
         raise typer.Exit(EXIT_FAILED_RUN)
 
 
@@ -183,7 +177,7 @@ def validate(file: Path = typer.Argument(..., help="scenario YAML file"),
     try:
         checked = validate_scenario(load_scenario(file, overrides=set_))
     except UserError as error:
-        raise _fail(error) from None
+        raise user_error_exit(error) from None
     print(f"{file}: ok ({len(checked['components'])} components, {len(checked['edges'])} "
           f"connections; step order: {', '.join(checked['order'])})")
 
@@ -204,7 +198,7 @@ def build_fmus(out: Optional[Path] = typer.Option(None, "--out", help="output fo
     try:
         paths = build_all(out)
     except (UserError, FmuBuildError) as error:
-        raise _fail(UserError(str(error))) from None
+        raise user_error_exit(UserError(str(error))) from None
     for path in paths:
         print(path)
 
@@ -218,7 +212,7 @@ def recover(run_dir: Path = typer.Argument(..., help="run folder of a master tha
     try:
         done = recover_csv(run_dir, keep_spool=keep_spool)
     except UserError as error:
-        raise _fail(error) from None
+        raise user_error_exit(error) from None
     for path, rows, ignored in done:
         note = f" (ignored {ignored} bytes of a partial last row)" if ignored else ""
         print(f"{path}: {rows} rows{note}")

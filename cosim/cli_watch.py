@@ -27,9 +27,9 @@ from typing import Optional
 
 import typer
 
+from cosim.cli_common import user_error_exit
 from cosim.errors import UserError
 
-EXIT_USER_ERROR = 2
 MANIFEST_WAIT_S = 10.0  # a run folder named just after `cosim run` printed it
 
 
@@ -160,8 +160,7 @@ def watch(
         if not count or printed < count:
             print(f"run {run_id} ended", file=sys.stderr, flush=True)
     except (UserError, TimeoutError) as error:
-        print(f"error: {error}", file=sys.stderr, flush=True)
-        raise typer.Exit(EXIT_USER_ERROR) from None
+        raise user_error_exit(UserError(str(error))) from None
     except KeyboardInterrupt:
         raise typer.Exit(0) from None
 

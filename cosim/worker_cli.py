@@ -13,6 +13,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from cosim.cli_common import user_error_exit
 from cosim.errors import UserError
 
 
@@ -26,12 +27,6 @@ def load_settings(deploy: Optional[Path], listen: list[str], connect: list[str])
     from cosim.deploy import load_deploy, merge_endpoints
 
     return merge_endpoints(load_deploy(deploy) if deploy else None, listen, connect)
-
-
-def _error(error: UserError) -> typer.Exit:
-    Console(stderr=True, highlight=False, soft_wrap=True).print(f"[red]error:[/red] {error}",
-                                                                 markup=True)
-    return typer.Exit(2)
 
 
 def worker(
@@ -53,14 +48,14 @@ def worker(
         settings = load_settings(deploy, listen, connect)
         agent = Worker(name, settings, allow or worker_protocol.DEFAULT_ALLOW, allow_fmu)
     except (UserError, ValueError) as error:
-        raise _error(UserError(str(error))) from None
+        raise user_error_exit(UserError(str(error))) from None
     print(f"worker {agent.name!r} on {agent.host}: listen {settings.listen or '-'}, "
           f"connect {settings.connect or '-'}, allow {', '.join(agent.allow)}"
           f"{', FMUs' if agent.allow_fmu else ''}", flush=True)
     try:
         agent.serve(on_ready=lambda: print(f"worker {agent.name!r} ready", flush=True))
     except UserError as error:
-        raise _error(error) from None
+        raise user_error_exit(error) from None
 
 
 def workers(
@@ -74,7 +69,7 @@ def workers(
     try:
         found = list_workers(load_settings(deploy, [], connect), timeout)
     except UserError as error:
-        raise _error(error) from None
+        raise user_error_exit(error) from None
     table = Table(title=f"{len(found)} worker(s)")
     for column in ("name", "host", "pid", "allowed modules", "running"):
         table.add_column(column)
@@ -98,7 +93,7 @@ def router(
         run_router(settings, on_ready=lambda: print(
             f"router listening on {', '.join(settings.listen)}", flush=True))
     except UserError as error:
-        raise _error(error) from None
+        raise user_error_exit(error) from None
 
 
 def register(app: typer.Typer) -> None:

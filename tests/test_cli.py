@@ -15,17 +15,19 @@ from test_fmu_component import lag_fmus  # noqa: F401  (session fixture)
 
 
 class Gain(Component):
-    """y = k * x; raises at t == fail_at (for failure tests)."""
+    """y = k * x; NaN at t == fail_at, raises at t == raise_at (for failure tests)."""
 
     inputs = (Port("x"),)
     outputs = (Port("y"),)
 
-    def __init__(self, k: float = 2.0, fail_at: float = -1.0):
-        self.k, self.fail_at = k, fail_at
+    def __init__(self, k: float = 2.0, fail_at: float = -1.0, raise_at: float = -1.0):
+        self.k, self.fail_at, self.raise_at = k, fail_at, raise_at
 
     def step(self, t, inputs):
         if t == self.fail_at:
             return {"y": math.nan}
+        if t == self.raise_at:
+            raise ValueError("omega[fl] left its range: [nan 1.0] [red]x[/red]")
         return {"y": self.k * inputs["x"]}
 
 
@@ -123,6 +125,18 @@ def test_failed_run_exits_1_and_keeps_what_it_has(good, tmp_path, capsys):
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["status"] == "failed" and "tick 30" in manifest["error"]
     assert manifest["ticks"] == 29
+
+
+def test_run_failure_message_keeps_its_square_brackets(good, tmp_path, capsys):
+    # brackets in a failure message look like rich markup; they must print as they are
+    code = main(["run", str(good), "--out", str(tmp_path / "run3"), "--transport", "inproc",
+                 "--no-figures", "--set", "components.gain.parameters.raise_at=0.2"])
+    assert code == 1
+    failed = [line for line in capsys.readouterr().err.splitlines()
+              if line.startswith("run failed: ")]
+    assert len(failed) == 1
+    assert "component 'gain' failed at tick 20" in failed[0]
+    assert failed[0].endswith("omega[fl] left its range: [nan 1.0] [red]x[/red]")
 
 
 def test_bad_set_override_exit_2(good, capsys):
