@@ -22,7 +22,6 @@ import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from math import isfinite as _isfinite
-from operator import itemgetter
 from typing import Any, Protocol
 
 import numpy as np
@@ -31,6 +30,7 @@ from cosim.errors import ComponentFailure
 from cosim.hosting import HostedComponent
 from cosim.schedule import step_order
 from cosim.signals import ComponentSlots, SignalLayout, build_layout
+from cosim.values import picker, value_problem
 
 
 class Observer(Protocol):
@@ -111,8 +111,8 @@ class Master:
             raise ValueError(f"component {name!r}: period_ticks must be >= 1, got {period}")
         slots = self.layout.slots[name]
         start = slots.out_scalar_start
-        return _Plan(name, comp, period, slots, _picker(slots.in_scalar_index),
-                     _picker(slots.out_scalar_names), start,
+        return _Plan(name, comp, period, slots, picker(slots.in_scalar_index),
+                     picker(slots.out_scalar_names), start,
                      start + len(slots.out_scalar_names))
 
     def value(self, component: str, signal: str) -> Any:
@@ -264,16 +264,6 @@ def _due_table(plans: Sequence[_Plan], limit: int = 4096) -> list[list[_Plan]] |
     return [[p for p in plans if r % p.period == 0] for r in range(cycle)]
 
 
-def _picker(keys: Sequence[Any]) -> Callable[[Any], tuple]:
-    """A C-speed getter of several keys as a tuple (itemgetter, also for 0 and 1 keys)."""
-    if not keys:
-        return lambda _: ()
-    if len(keys) == 1:
-        key = keys[0]
-        return lambda container: (container[key],)
-    return itemgetter(*keys)
-
-
 def _freeze(value: Any) -> np.ndarray:
     """A read-only float64 copy of `value`."""
     array = np.array(value, dtype=np.float64)
@@ -295,24 +285,7 @@ def _diagnose(plan: _Plan, outputs: Any, k: int | None, t: float) -> ComponentFa
     for name, size in ports:
         if name not in outputs:
             return ComponentFailure(plan.name, k, t, f"output {name!r} missing")
-        problem = _value_problem(outputs[name], size)
+        problem = value_problem(outputs[name], size)
         if problem:
             return ComponentFailure(plan.name, k, t, f"output {name!r} {problem}")
     return ComponentFailure(plan.name, k, t, "invalid outputs")  # pragma: no cover
-
-
-def _value_problem(value: Any, size: int) -> str:
-    """Why `value` is not a finite float (size 1) or a finite float array of `size`."""
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        return f"is not a number: {value!r}"
-    if size == 1 and array.ndim != 0:
-        return f"has shape {array.shape}, expected a scalar"
-    if size > 1 and array.shape != (size,):
-        return f"has shape {array.shape}, expected ({size},)"
-    bad = np.flatnonzero(~np.isfinite(array.reshape(-1)))
-    if bad.size:
-        where = "" if size == 1 else f" at [{bad[0]}]"
-        return f"is non-finite{where}: {float(array.reshape(-1)[bad[0]])!r}"
-    return ""

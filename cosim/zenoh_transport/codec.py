@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Callable, Mapping, Sequence
-from operator import itemgetter
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from cosim.component import Port, Value
+from cosim.values import picker, value_problem
 # the stdlib-only part of the wire format, re-exported: one import for both halves
 from cosim.zenoh_transport.wire import (HEADER, CodecError, Kind, decode_json,  # noqa: F401
                                         encode_json, header_tick)
@@ -42,7 +42,7 @@ class Layout:
         self.size = sum(p.size for p in self.ports)
         self.scalar_only = all(p.size == 1 for p in self.ports)
         self._struct = struct.Struct(f"<qqqd{self.size}d")
-        self._pick = _picker(self.names)
+        self._pick = picker(self.names)
         self._slices: list[tuple[str, int, int]] = []
         offset = 0
         for port in self.ports:
@@ -113,34 +113,6 @@ class Layout:
             if problem:
                 return f"{role} {name!r} {problem}"
         return ""
-
-
-def _picker(names: tuple[str, ...]) -> Callable[[Mapping[str, Value]], tuple]:
-    """A C-level getter of the values of `names`, always returning a tuple."""
-    if len(names) >= 2:
-        return itemgetter(*names)
-    if len(names) == 1:
-        only = names[0]
-        return lambda values: (values[only],)
-    return lambda values: ()
-
-
-def value_problem(value: Any, size: int) -> str:
-    """Why `value` is not a finite float (size 1) or a finite float array of `size`, or ""."""
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        return f"is not a number: {value!r}"
-    if size == 1 and array.ndim != 0:
-        return f"has shape {array.shape}, expected a scalar"
-    if size > 1 and array.shape != (size,):
-        return f"has shape {array.shape}, expected ({size},)"
-    flat = array.reshape(-1)
-    bad = np.flatnonzero(~np.isfinite(flat))
-    if bad.size:
-        where = "" if size == 1 else f" at [{bad[0]}]"
-        return f"is non-finite{where}: {float(flat[bad[0]])!r}"
-    return ""
 
 
 def ports_to_json(ports: Sequence[Port]) -> list[dict[str, Any]]:
