@@ -65,8 +65,6 @@ def run(
                                   help="start component processes while the scenario loads"),
 ) -> None:
     """Run a scenario and write its run folder."""
-    from cosim.run import run_scenario
-    from cosim.scenario import load_scenario
     from cosim.startup import StartupClock
 
     clock = StartupClock.from_process_start()  # time to tick 0 as the user sees it
@@ -76,24 +74,55 @@ def run(
 
         early = prestart_components(scenario)  # their start overlaps the scenario's load
     try:
-        loaded = load_scenario(scenario, overrides=set_)
-        clock.mark("scenario_loaded")
-        folder = out if out is not None else default_run_dir(loaded.name)
-        print(f"run folder: {folder}", flush=True)
-        settings = None
-        if deploy is not None or listen or connect:
-            from cosim.worker_cli import load_settings
-            settings = load_settings(deploy, listen, connect)
-        with _sigterm_interrupts():
-            result = run_scenario(loaded, folder, transport=transport, realtime=realtime,
-                                  progress=sys.stdout.isatty(), place=place, deploy=settings,
-                                  deadline_s=deadline, clock=clock, on_live=_print_live,
-                                  prestart=early)
+        result = _load_and_run(scenario, set_, out, (deploy, listen, connect), clock,
+                               transport=transport, realtime=realtime, place=place,
+                               deadline_s=deadline, prestart=early)
     except UserError as error:
         raise user_error_exit(error) from None
     finally:
         if early is not None:
             early.close()
+    _finish_run(result, figures)
+
+
+def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path],
+                  endpoints: tuple[Optional[Path], list[str], list[str]], clock: Any,
+                  **run_options: Any) -> Any:
+    """Load the scenario, name its run folder, then run it (SIGTERM ends it cleanly).
+
+    Args:
+        scenario_file: the scenario YAML.
+        overrides: the `--set PATH=VALUE` values.
+        out: the run folder, or None for a fresh one under runs/.
+        endpoints: `--deploy` file, `--listen` and `--connect` values.
+        clock: the cosim.startup.StartupClock of the command (marks "scenario_loaded").
+        run_options: passed on to `cosim.run.run_scenario`.
+    Returns:
+        The cosim.run.RunResult.
+    """
+    from cosim.run import run_scenario
+    from cosim.scenario import load_scenario
+
+    loaded = load_scenario(scenario_file, overrides=overrides)
+    clock.mark("scenario_loaded")
+    folder = out if out is not None else default_run_dir(loaded.name)
+    print(f"run folder: {folder}", flush=True)
+    settings = None
+    if endpoints[0] is not None or endpoints[1] or endpoints[2]:
+        from cosim.worker_cli import load_settings
+        settings = load_settings(*endpoints)
+    with _sigterm_interrupts():
+        return run_scenario(loaded, folder, progress=sys.stdout.isatty(), deploy=settings,
+                            clock=clock, on_live=_print_live, **run_options)
+
+
+def _finish_run(result: Any, figures: bool) -> None:
+    """Analyse the run folder and print the summary; a failed run exits with status 1.
+
+    Args:
+        result: the cosim.run.RunResult.
+        figures: draw the run's figures.
+    """
     if result.ticks > 0:
         for note in analyse_run_folder(result, figures):
             print(note)

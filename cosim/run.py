@@ -217,41 +217,59 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
     Raises:
         UserError for anything wrong before tick 0 (scenario, FMU, wiring).
     """
-    if transport not in TRANSPORTS:
-        raise UserError(f"unknown transport {transport!r} (choose from {', '.join(TRANSPORTS)})")
-    if realtime is not None and not realtime > 0:
-        raise UserError(f"--realtime factor must be > 0, got {realtime!r}")
+    _check_run_options(transport, realtime)
     clock = clock or StartupClock.from_now()
     with contextlib.ExitStack() as stack:
         if prestart is not None:
             stack.callback(prestart.close)
-        from cosim.placement import resolve_placement
-
-        placement = resolve_placement(scenario, place)
-        if placement and transport != "zenoh":
-            raise UserError("components placed on workers need --transport zenoh: "
-                            + ", ".join(f"{c} on {w!r}" for c, w in placement.items()))
-        if prestart is not None and (transport != "zenoh" or placement or deploy is not None):
-            prestart.close()  # not this kind of run: free the CPU at once
-            prestart = None
+        placement = _placement(scenario, place, transport)
+        prestart = _usable_prestart(prestart, transport, placement, deploy)
         launches = plan_launches(scenario, import_classes=transport != "zenoh")
         launches += _placed_fmu_launches(scenario, placement)
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         run_id = prestart.run_id if prestart is not None else uuid.uuid4().hex[:12]
         remote = None
-        if transport == "zenoh":
+        if transport == "zenoh":  # spawned before the FMUs load: their start-ups overlap
             remote = _spawn_remote(launches, run_id, deadline_s, placement, deploy, stack,
-                                   prestart)
-            clock.mark("spawned")
-            if on_live is not None:
-                on_live(run_id, remote.endpoint)
+                                   prestart, clock, on_live)
         local_fmus = [p for p in plan_fmus(scenario) if p.name not in placement]
         prepared = PreparedRun(scenario, local_fmus, launches, _names(scenario),
                                placement, deploy)
         hosted = _host_components(prepared, remote, clock)
         return _execute(prepared, hosted, remote, out, transport, run_id, realtime, progress,
                         clock)
+
+
+def _check_run_options(transport: str, realtime: float | None) -> None:
+    """Reject an unknown transport or a non-positive real-time factor (UserError)."""
+    if transport not in TRANSPORTS:
+        raise UserError(f"unknown transport {transport!r} (choose from {', '.join(TRANSPORTS)})")
+    if realtime is not None and not realtime > 0:
+        raise UserError(f"--realtime factor must be > 0, got {realtime!r}")
+
+
+def _placement(scenario: Any, place: Sequence[str], transport: str) -> dict[str, str]:
+    """Component -> worker from `host:` and `--place`; placing anything needs zenoh."""
+    from cosim.placement import resolve_placement
+
+    placement = resolve_placement(scenario, place)
+    if placement and transport != "zenoh":
+        raise UserError("components placed on workers need --transport zenoh: "
+                        + ", ".join(f"{c} on {w!r}" for c, w in placement.items()))
+    return placement
+
+
+def _usable_prestart(prestart: Any, transport: str, placement: dict[str, str],
+                     deploy: Any) -> Any:
+    """The prestarted processes if this run can use them (a local zenoh run), else None.
+
+    Prestarted processes that this run cannot use are ended at once, to free the CPU.
+    """
+    if prestart is not None and (transport != "zenoh" or placement or deploy is not None):
+        prestart.close()
+        return None
+    return prestart
 
 
 def _placed_fmu_launches(scenario: Any, placement: dict[str, str]) -> list[PythonComponentLaunch]:
@@ -268,8 +286,12 @@ def _placed_fmu_launches(scenario: Any, placement: dict[str, str]) -> list[Pytho
 
 def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s: float,
                   placement: dict[str, str], deploy: Any, stack: contextlib.ExitStack,
-                  prestart: Any = None) -> Any:
-    """Start the component processes (without waiting for them); closed with `stack`."""
+                  prestart: Any, clock: StartupClock,
+                  on_live: Callable[[str, str], None] | None) -> Any:
+    """Start the component processes (without waiting for them); closed with `stack`.
+
+    Marks "spawned" on `clock`, then tells `on_live` where the run can be watched.
+    """
     try:
         from cosim.zenoh_transport import ZenohComponents
     except ImportError as exc:
@@ -287,6 +309,9 @@ def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s
         remote = ZenohComponents(launches, run_id, deadline_s)
     stack.callback(remote.close)
     remote.spawn()
+    clock.mark("spawned")
+    if on_live is not None:
+        on_live(run_id, remote.endpoint)
     return remote
 
 
