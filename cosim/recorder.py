@@ -130,11 +130,6 @@ class Recorder:
         self._closed = False
         self._last_flush = time.monotonic()
 
-    @property
-    def signals_path(self) -> Path:
-        """Path of signals.csv."""
-        return self.out_dir / SIGNALS_FILE
-
     def begin(self, master: Any) -> None:
         """Choose the columns from the master's layout; write the CSV and spool headers."""
         self.out_dir.mkdir(parents=True, exist_ok=True)

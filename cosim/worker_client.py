@@ -17,7 +17,6 @@ worker's exit notice, and a failure mid-run names the worker and its host.
 from __future__ import annotations
 
 import json
-import subprocess
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any
