@@ -49,8 +49,9 @@ from cosim.errors import Problem, ScenarioError, did_you_mean
 from cosim.scenario_checks import BUILTIN_FMUS, IDENTIFIER, semantic_problems, whole_ticks
 from cosim.scenario_models import (ComponentSpec, Connection, FmuSpec, PythonSpec,
                                    RecordSpec, Scenario, Uncertainty)
-from cosim.scenario_sources import (SOURCE_CLASSES, SOURCE_KIND_ERROR, ConstantSource,
-                                    GustSource, RampSource, SourceSpec, StepSource, TableSource)
+from cosim.scenario_sources import (SOURCE_CLASSES, SOURCE_KIND_ERROR, SOURCE_MODELS,
+                                    ConstantSource, GustSource, RampSource, SourceSpec,
+                                    StepSource, TableSource)
 from cosim.yaml_lines import LineMap, format_path, load_yaml, parse_scalar
 
 __all__ = [
@@ -130,14 +131,16 @@ PATTERN_HINTS = {
 
 def _problem_of(error: Any, lines: LineMap) -> Problem:
     """Turn one pydantic error into a located Problem that shows the offending value."""
-    loc = tuple(k for k in error["loc"] if not (isinstance(k, str) and k.startswith("<")))
+    raw_loc = tuple(error["loc"])
+    loc = tuple(k for k in raw_loc if not (isinstance(k, str) and k.startswith("<")))
     loc = tuple(k for k in loc if k != "[key]")
     value = error.get("input")
     message = error["msg"].removeprefix("Value error, ")
     if error["type"] == "missing":
         message = f"field {loc[-1]!r} is required" if loc else "a field is required"
     elif error["type"] == "extra_forbidden":
-        message = f"unknown field {loc[-1]!r}" + _suggestion(loc)
+        message = f"unknown field {loc[-1]!r}" + (_other_kind_hint(raw_loc)
+                                                  or _suggestion(loc))
     elif error["type"] == SOURCE_KIND_ERROR and isinstance(value, dict):
         message += f" (got {value.get('kind')!r})"
     elif error["type"] == "string_pattern_mismatch" and loc and loc[-1] in PATTERN_HINTS:
@@ -159,10 +162,29 @@ def _field_names() -> set[str]:
 
 
 def _suggestion(loc: tuple[str | int, ...]) -> str:
-    """' (did you mean ...?)' for a misspelt field name."""
+    """' (did you mean ...?)' for a misspelt field name (never the name itself)."""
     if not loc or not isinstance(loc[-1], str):
         return ""
-    return did_you_mean(loc[-1], sorted(_field_names()))
+    return did_you_mean(loc[-1], sorted(_field_names() - {loc[-1]}))
+
+
+def _other_kind_hint(raw_loc: tuple[Any, ...]) -> str:
+    """For a source field that belongs to another kind: which kinds take it, and this kind's fields.
+
+    A gust's `amplitude` written under `kind: step` is not a spelling mistake, so a
+    "did you mean" would mislead; "" when `raw_loc` is not inside a source of a known kind.
+    """
+    tags = [k for k in raw_loc[:-1] if isinstance(k, str) and k.startswith("<")]
+    kind = tags[-1][1:-1] if tags else None
+    name = raw_loc[-1] if raw_loc else None
+    if kind not in SOURCE_MODELS or not isinstance(name, str):
+        return ""
+    owners = [k for k, model in SOURCE_MODELS.items() if name in model.model_fields]
+    if not owners:
+        return ""
+    own = ", ".join(f for f in SOURCE_MODELS[kind].model_fields if f != "kind")
+    return (f" for kind {kind!r}, whose fields are: {own}"
+            f" ({name!r} belongs to kind {', '.join(owners)})")
 
 
 def apply_overrides(data: Any, overrides: Sequence[str], lines: LineMap) -> list[Problem]:

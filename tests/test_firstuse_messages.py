@@ -1,0 +1,55 @@
+"""Messages a first-time user met while writing broken scenarios (first-hour dry run).
+
+Each test is one mistake made by hand, with the exact message it must give.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from cosim.errors import ScenarioError
+from cosim.scenario import load_scenario
+
+HEAD = ("name: s\nduration: 1\ntick: 0.01\ncomponents:\n  v: {fmu: Bicycle}\n"
+        "sources:\n")   # the source is on line 7
+
+
+def messages(tmp_path: Path, text: str) -> list[str]:
+    """The lines of the ScenarioError of `text`, without the file name."""
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    return [line.removeprefix(str(path)) for line in str(info.value).splitlines()]
+
+
+def test_field_of_another_source_kind_names_that_kind(tmp_path: Path) -> None:
+    # A gust's fields under kind: step; "did you mean 'amplitude'?" used to suggest the name itself.
+    got = messages(tmp_path, HEAD + "  w: {kind: step, initial: 0, final: 1, at: 1, "
+                   "amplitude: 5}\n")
+    assert got == [":7: sources.w.amplitude: unknown field 'amplitude' for kind 'step', "
+                   "whose fields are: period, host, unit, initial, final, at "
+                   "('amplitude' belongs to kind gust)"]
+
+
+def test_field_of_several_kinds_lists_them(tmp_path: Path) -> None:
+    got = messages(tmp_path, HEAD + "  w: {kind: constant, value: 0, start: 1}\n")
+    assert got == [":7: sources.w.start: unknown field 'start' for kind 'constant', "
+                   "whose fields are: period, host, unit, value ('start' belongs to kind "
+                   "ramp, gust)"]
+
+
+def test_misspelt_source_field_still_gets_a_suggestion(tmp_path: Path) -> None:
+    got = messages(tmp_path, HEAD + "  w: {kind: step, initial: 0, final: 1, att: 1}\n")
+    assert got == [":7: sources.w.at: field 'at' is required",
+                   ":7: sources.w.att: unknown field 'att' (did you mean 'at'?)"]
+
+
+def test_a_valid_field_in_the_wrong_place_is_not_suggested_as_itself(tmp_path: Path) -> None:
+    # `unit` is a field of sources, not of an FMU component.
+    got = messages(tmp_path, "name: s\nduration: 1\ntick: 0.01\ncomponents:\n"
+                   "  v: {fmu: Bicycle, unit: N}\n")
+    assert len(got) == 1 and got[0].startswith(":5: components.v.unit: unknown field 'unit'")
+    assert "did you mean 'unit'" not in got[0]
