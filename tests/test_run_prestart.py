@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from pathlib import Path
 
 import pytest
@@ -33,6 +34,18 @@ def _gone(pid: int) -> bool:
     except ProcessLookupError:
         return True
     return False
+
+
+def _runner_cmdline(pid: int, bound_s: float = 30.0) -> list[bytes]:
+    """The process's argv once it shows the runner's (under load, just after the spawn,
+    /proc may still show the parent's); polled, at most `bound_s`, then the last seen."""
+    stop = time.monotonic() + bound_s
+    while True:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            argv = f.read().split(b"\0")
+        if b"cosim.zenoh_transport.runner" in argv or time.monotonic() > stop:
+            return argv
+        time.sleep(0.01)
 
 
 class Weighted(Component):
@@ -92,8 +105,7 @@ def test_the_run_uses_the_prestarted_processes_and_matches_inproc(tmp_path):
     early = prestart_components(path)
     assert sorted(early.children) == ["gain", "ramp"]
     pids = {name: child.pid for name, child in early.children.items()}
-    with open(f"/proc/{pids['gain']}/cmdline", "rb") as f:
-        argv = f.read().split(b"\0")
+    argv = _runner_cmdline(pids["gain"])
     assert argv[argv.index(b"--name") + 1] == b"gain" and b"--spec-stdin" in argv
     assert argv[argv.index(b"--preload") + 1] == b"test_cli"
     scenario = load_scenario(path)
