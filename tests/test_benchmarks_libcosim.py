@@ -15,17 +15,17 @@ import pytest
 
 from benchmarks import bench_vs_libcosim as bench
 from benchmarks.common import interleaved, min_and_median
-from cosim import fmu_build
 from cosim.fmu_interface import describe_fmu
 from cosim.recorder import read_signals
+from fmu_fixtures import built_fmu, fmu_dir  # noqa: F401  (session fixture)
 
 STEPS = 300
 
 
 @pytest.fixture(scope="module")
-def vehicle(tmp_path_factory):
-    """(fmu path, interface) of a Vehicle8DOF FMI 2.0 FMU built for this module."""
-    fmu = fmu_build.build_fmu(bench.MODEL, 2, tmp_path_factory.mktemp("libcosim-fmu"))
+def vehicle(fmu_dir):
+    """(fmu path, interface) of the Vehicle8DOF FMI 2.0 FMU the test session shares."""
+    fmu, _ = built_fmu(fmu_dir, bench.MODEL, 2)
     return fmu, describe_fmu(fmu)
 
 
