@@ -13,7 +13,7 @@ import importlib
 from collections.abc import Mapping
 
 from cosim.component import Component, ComponentError, Port, Value, ports_by_name
-from cosim.errors import ComponentFailure, UserError
+from cosim.errors import ComponentFailure, UserError, did_you_mean
 from cosim.launch import PythonComponentLaunch  # re-exported: its historical home
 
 
@@ -34,6 +34,13 @@ def import_component_class(class_path: str, component: str) -> type[Component]:
         raise UserError(f"component {component!r}: cannot import module "
                         f"{module_name!r}: {exc}") from exc
     cls = getattr(module, class_name, None)
+    if cls is None:
+        classes = sorted(name for name, value in vars(module).items()
+                         if isinstance(value, type) and issubclass(value, Component)
+                         and value is not Component and not name.startswith("_"))
+        raise UserError(f"component {component!r}: module {module_name!r} has no class "
+                        f"{class_name!r}" + did_you_mean(class_name, classes)
+                        + (f"; its components: {', '.join(classes)}" if classes else ""))
     if not isinstance(cls, type) or not issubclass(cls, Component):
         raise UserError(f"component {component!r}: {class_path!r} is not a "
                         f"cosim.component.Component subclass")

@@ -53,3 +53,22 @@ def test_a_valid_field_in_the_wrong_place_is_not_suggested_as_itself(tmp_path: P
                    "  v: {fmu: Bicycle, unit: N}\n")
     assert len(got) == 1 and got[0].startswith(":5: components.v.unit: unknown field 'unit'")
     assert "did you mean 'unit'" not in got[0]
+
+
+def test_misspelt_class_names_the_module_and_its_components() -> None:
+    from cosim.errors import UserError
+    from cosim.inproc import import_component_class
+    with pytest.raises(UserError) as info:
+        import_component_class("controllers.baselines:StanlyController", "controller")
+    assert str(info.value) == (
+        "component 'controller': module 'controllers.baselines' has no class "
+        "'StanlyController' (did you mean 'StanleyController'?); its components: "
+        "PurePursuitController, StanleyController")
+
+
+def test_a_name_that_is_not_a_component_keeps_its_message() -> None:
+    from cosim.errors import UserError
+    from cosim.inproc import import_component_class
+    with pytest.raises(UserError, match="'cosim.inproc:UserError' is not a "
+                                        "cosim.component.Component subclass"):
+        import_component_class("cosim.inproc:UserError", "c")
