@@ -9,7 +9,6 @@ deployment settings (TLS, ACL) as the other sessions.
 
 from __future__ import annotations
 
-import signal
 import threading
 from collections.abc import Callable
 
@@ -17,6 +16,7 @@ import zenoh
 
 from cosim.deploy import DeploySettings, zenoh_config
 from cosim.errors import UserError
+from cosim.service import stop_event_with_signals
 
 
 def run_router(settings: DeploySettings, stop_event: threading.Event | None = None,
@@ -30,10 +30,7 @@ def run_router(settings: DeploySettings, stop_event: threading.Event | None = No
     """
     if not settings.listen:
         raise UserError("cosim router needs at least one --listen ENDPOINT")
-    stop_event = stop_event or threading.Event()
-    if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGTERM, signal.SIGINT):
-            signal.signal(sig, lambda *_: stop_event.set())
+    stop_event = stop_event_with_signals(stop_event)
     conf = zenoh_config(settings, "router", settings.listen, settings.connect)
     try:
         session = zenoh.open(conf)

@@ -37,6 +37,7 @@ from cosim.deploy import (DeploySettings, check_endpoint, session_mode, zenoh_co
 from cosim.errors import UserError
 from cosim.fmu_remote import FMU_HOST_CLASS, store_fmu
 from cosim.inproc import PythonComponentLaunch
+from cosim.service import stop_event_with_signals
 from cosim.zenoh_transport.config import check_key_chunk
 from cosim.zenoh_transport.processes import ChildProcess
 
@@ -77,10 +78,7 @@ class Worker:
             stop_event: set it to end the worker (None: only signals end it).
             on_ready: called once the queryable and token are declared.
         """
-        stop_event = stop_event or threading.Event()
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGTERM, signal.SIGINT):
-                signal.signal(sig, lambda *_: stop_event.set())
+        stop_event = stop_event_with_signals(stop_event)
         conf = zenoh_config(self.settings, self.mode, self.settings.listen, self.settings.connect)
         try:
             session = zenoh.open(conf)
