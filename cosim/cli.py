@@ -123,10 +123,12 @@ def _finish_run(result: Any, figures: bool) -> None:
         result: the cosim.run.RunResult.
         figures: draw the run's figures.
     """
+    from cosim.summary import print_summary
+
     if result.ticks > 0:
         for note in analyse_run_folder(result, figures):
             print(note)
-    print_summary(result)
+    print_summary(result)  # run table, then metrics table
     if result.status != "ok":
         Console(stderr=True, highlight=False, soft_wrap=True).print(
             f"[red]run failed:[/red] {escape(str(result.error))}", markup=True)
@@ -182,18 +184,6 @@ def analyse_run_folder(result: Any, figures: bool) -> list[str]:
         except Exception as exc:
             notes.append(f"figures not drawn: {exc}")
     return notes
-
-
-def print_summary(result: Any, console: Console | None = None) -> None:
-    """The closing summary of a run: run table, then metrics table (cosim.summary).
-
-    Args:
-        result: a cosim.run.RunResult.
-        console: where to print (default: stdout).
-    """
-    from cosim.summary import print_summary as print_tables
-
-    print_tables(result, console)
 
 
 @app.command()
