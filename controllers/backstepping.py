@@ -17,7 +17,9 @@ Each step:
 5. steering from the lateral law with mu_hat (adaptive) or mu0, then the angle
    and rate limits.
 
-Anti-windup: mu_hat is frozen for the next step when the steering command was
+Adaptation: `adaptation` "paper" is EQUATIONS.md's law, "robust" adds the
+conditions of backstepping_lateral's docstring (dead zone, excitation, speed).
+Anti-windup (both): mu_hat is frozen for the next step when the steering command was
 limited (the law's assumption that mu B delta acts fully is then false), and
 below v_min. Low speed: below v_min the lateral law uses v_min in place of vx
 (it divides by vx); steering stays continuous and bounded.
@@ -35,7 +37,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 from cosim.component import Component, ComponentError, Port, Value
-from controllers.backstepping_lateral import LateralGains, ScalarLateralLaw
+from controllers.backstepping_lateral import AdaptationSettings, LateralGains, ScalarLateralLaw
 from controllers.control_common import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits,
                                         InputReader, SteeringLimiter, StepClock,
                                         empty_window_outputs, finite_outputs, path_errors)
@@ -75,6 +77,12 @@ class BacksteppingController(Component):
         ke: step-1 gain, scalar or [k_yL, k_psiL]; kz: step-2 gain; gz: side-wind gain.
         g_mu: adaptation gain; mu0: initial (or fixed) friction; mu_min, mu_max: projection bounds.
         adaptive: estimate mu online (eq. 13) instead of using mu0 (eq. 12).
+        adaptation: "paper" (the adaptation law of EQUATIONS.md, the faithful reference) or
+            "robust" (backstepping_lateral's docstring: applied-steer regressor, dead zone,
+            excitation and speed conditions); only read when adaptive.
+        fwy_max: robust law's dead zone: side force [N] it tolerates without adapting.
+        a_excite: robust law: freeze mu_hat while |vx r| is below this [m/s^2].
+        v_adapt: robust law: freeze mu_hat below this speed [m/s].
         lateral_law: "faithful" (the paper's) or "feedforward" (no steady error on curves).
         ff_target: what the feedforward law zeroes: "cg" (CG on the path) or "preview" (yL).
         max_delta, max_delta_rate, max_torque, min_torque: actuator limits.
@@ -91,7 +99,9 @@ class BacksteppingController(Component):
                  Rw: float = 0.3, lw: float = 0.3, ls: float = 5.0, kx: float = 1500.0,
                  gx: float = 1500.0, ke: float | Sequence[float] = 1.0, kz: float = 5.0,
                  gz: float = 1.0e5, g_mu: float = 0.5, mu0: float = 1.0, mu_min: float = 0.1,
-                 mu_max: float = 1.2, adaptive: bool = False, lateral_law: str = "faithful",
+                 mu_max: float = 1.2, adaptive: bool = False, adaptation: str = "paper",
+                 fwy_max: float = 0.0, a_excite: float = 0.5, v_adapt: float = 3.0,
+                 lateral_law: str = "faithful",
                  ff_target: str = "cg",
                  max_delta: float = 0.5, max_delta_rate: float = 1.0, max_torque: float = 3000.0,
                  min_torque: float = -6000.0, v_min: float = 1.0, period: float = 0.01,
@@ -114,7 +124,9 @@ class BacksteppingController(Component):
         self.mu_hat = float(mu0)
         self.mu_hat_dot = 0.0
         self.reader = InputReader()
-        self.lateral = ScalarLateralLaw(self.params, self.gains)
+        self.adaptation = AdaptationSettings(law=adaptation, fwy_max=fwy_max, a_excite=a_excite,
+                                             v_adapt=v_adapt)
+        self.lateral = ScalarLateralLaw(self.params, self.gains, self.adaptation)
         self._me, self._kxgx = self.params.me, self.kx + self.gx
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:

@@ -35,13 +35,54 @@ caller) and rho_dot = dkappa/ds vx. In the feedforward law the vx-derivative of
 the (linear in rho) equilibrium is a central difference in vx; the
 second derivative of e_r is neglected (it only acts while rho changes).
 
-The adaptation law of EQUATIONS.md, with the bracket q = v + mu_hat A1 x:
+The adaptation law of EQUATIONS.md ("paper"), with the bracket q = v + mu_hat A1 x:
 
     mu_hat_dot = (g_mu / mu_hat) z^T q
+
+"robust" (AdaptationSettings) re-derives V3_dot for the steer actually
+commanded. With phi = A1 x + B delta (the tyre accelerations per unit of
+friction) and r_ls = v - mu_hat B delta (the part of v no single steer can
+apply: zero for a 2-input law, B-orthogonal for the least-squares one),
+
+    z_dot = -G z - g^T e~ - r_ls + D Fwy + mu~ phi,          mu~ = mu - mu_hat
+    V3_dot = -e~^T Ke e~ - z^T G z - z^T r_ls + z^T D Fwy + mu~ (z^T phi - mu_hat_dot / g_mu)
+
+1. Regressor: mu_hat_dot = g_mu z^T phi cancels the mu~ term exactly. The
+   paper's bracket is g_mu z^T (A1 x + v / mu_hat) = g_mu z^T (phi + r_ls / mu_hat):
+   it also integrates z^T r_ls, which carries no information on mu. That term is
+   what drives the faithful law's estimate to its floor on every curve.
+2. Dead zone: with z^T G z >= kz |z|^2 + gz (D^T z)^2 and z^T D Fwy <= |D| |z| ||Fwy||,
+   V3_dot <= -e~^T Ke e~ - |z| (kz |z| - |D| fwy_max - |r_ls|), so V3 decreases
+   while |z| > z0 = (|D| fwy_max + |r_ls|) / kz; inside, the error is one a
+   bounded side force (fwy_max) and the known residual can explain, and mu_hat
+   is frozen. (The square-completion bound of EQUATIONS.md, ||Fwy||^2 / (4 gz),
+   gives the radius fwy_max / (2 sqrt(kz gz)): 0.53 for kz = 20, gz = 1e5,
+   fwy_max = 1500 N, ten times the 0.051 of the bound used here.)
+   A side force in a steady turn and a change of grip both act along ~B
+   (in a steady turn phi is ~[ay/mu, 0], 10 degrees from D at Table I): no law on this model tells
+   them apart there, and the dead zone only trades one for the other. It hides
+   a friction error below |D| fwy_max / |phi| (0.06 per 100 N at 1.67 m/s^2)
+   and also stops the estimate's return after a gust. Measured (friction_drop,
+   8-DOF): fwy_max 0 / 100 / 300 N end at mu_hat 0.496 / 0.520 / 0.548 for mu
+   0.5. Hence the default 0: the dead zone covers the known residual r_ls;
+   fwy_max is there for a known, persistent side-force level.
+3. Excitation: adapt only while |vx r| >= a_excite (the measured centripetal
+   acceleration; ay is not a controller input). On a straight road the tyres
+   only balance what the model does not describe (a gust): z^T phi then
+   measures the disturbance, not the grip.
+4. Speed schedule: adapt only while vx >= v_adapt (the 1/vx terms of A1 and the
+   path-error model's small-angle kinematics dominate near a stop).
+Where it adapts, V3 decreases outside the dead zone (item 2); where it is
+frozen, mu~ is constant, and the projection onto [mu_min, mu_max] (which only
+removes steps leaving the interval, so it never raises V3 while mu is inside)
+keeps it bounded: the (e, z) loop then sees the bounded input mu~ phi. No
+leakage (sigma-modification): projection already gives the boundedness it
+buys, and leakage toward mu0 biases the estimate by its prior.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,6 +92,47 @@ from controllers.vehicle_params import VehicleParams
 
 LATERAL_LAWS = ("faithful", "feedforward")
 FF_TARGETS = ("cg", "preview")
+ADAPTATIONS = ("paper", "robust")
+
+
+@dataclass(frozen=True)
+class AdaptationSettings:
+    """Which friction adaptation law, and the robust law's thresholds (module docstring).
+
+    Args:
+        law: "paper" (EQUATIONS.md as derived) or "robust" (regressor, dead zone, excitation, speed).
+        fwy_max: side force [N] the dead zone tolerates without adapting (>= 0; default 0: the
+            dead zone covers the computed residual r_ls only).
+        a_excite: lateral acceleration |vx r| [m/s^2] below which the estimate is frozen (>= 0).
+        v_adapt: speed [m/s] below which the estimate is frozen (>= 0).
+    """
+
+    law: str = "paper"
+    fwy_max: float = 0.0
+    a_excite: float = 0.5
+    v_adapt: float = 3.0
+
+    def __post_init__(self) -> None:
+        if self.law not in ADAPTATIONS:
+            raise ComponentError(f"adaptation must be one of {ADAPTATIONS}, got {self.law!r}")
+        for name in ("fwy_max", "a_excite", "v_adapt"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0.0:
+                raise ComponentError(f"{name} must be a number >= 0, got {value!r}")
+
+    def adapts(self, vx: float, r: float, z_norm: float, residual_norm: float, d_norm: float,
+               kz: float) -> bool:
+        """Whether the robust law integrates: speed, excitation and outside the dead zone.
+
+        Args:
+            vx, r: measured speed [m/s] and yaw rate [rad/s]; z_norm: |z|; residual_norm: |r_ls|;
+            d_norm: |D|; kz: step-2 gain.
+        """
+        return (vx >= self.v_adapt and abs(vx * r) >= self.a_excite
+                and kz * z_norm > d_norm * self.fwy_max + residual_norm)
+
+
+PAPER_ADAPTATION = AdaptationSettings()
 
 
 @dataclass(frozen=True)
@@ -178,7 +260,7 @@ def path_reference(m: LateralMeasurement, vx: float, params: VehicleParams, gain
 
 
 def lateral_law(m: LateralMeasurement, mu_hat: float, params: VehicleParams, gains: LateralGains,
-                g_mu: float = 0.0) -> LateralCommand:
+                g_mu: float = 0.0, adaptation: AdaptationSettings = PAPER_ADAPTATION) -> LateralCommand:
     """Backstepping steering command (eq. 12 with mu_hat in place of mu, i.e. eq. 13).
 
     Args:
@@ -187,6 +269,7 @@ def lateral_law(m: LateralMeasurement, mu_hat: float, params: VehicleParams, gai
         params: the controller's nominal vehicle parameters.
         gains: gains, preview distance, speed floor and law selection.
         g_mu: adaptation gain; the returned mu_hat_dot is 0 when g_mu is 0.
+        adaptation: the adaptation law ("paper" by default) and its thresholds.
     """
     vx = max(m.vx, gains.v_min)
     ls = gains.ls
@@ -209,8 +292,14 @@ def lateral_law(m: LateralMeasurement, mu_hat: float, params: VehicleParams, gai
     v = -gain_z @ z - (mu_hat * a1 + params.a2(vx)) @ x + alpha_dot - g_t @ e_t
     b = params.b()
     delta = float(b @ v) / (mu_hat * float(b @ b))
-    q = v + mu_hat * (a1 @ x)
-    mu_hat_dot = (g_mu / mu_hat) * float(z @ q)
+    if adaptation.law == "paper":
+        mu_hat_dot = (g_mu / mu_hat) * float(z @ (v + mu_hat * (a1 @ x)))
+    else:
+        phi = a1 @ x + b * delta
+        residual = v - mu_hat * b * delta
+        active = adaptation.adapts(m.vx, m.r, float(np.linalg.norm(z)), float(np.linalg.norm(residual)),
+                                   float(np.linalg.norm(d)), gains.kz)
+        mu_hat_dot = g_mu * float(z @ phi) if active else 0.0
     v1 = 0.5 * float(e_t @ e_t)
     return LateralCommand(delta=delta, e_tilde=e_t, alpha=alpha, z=z, v=v, mu_hat_dot=mu_hat_dot,
                           V1=v1, V2=v1 + 0.5 * float(z @ z))
@@ -225,12 +314,15 @@ class ScalarLateralLaw:
     parameters and gains computed once.
 
     Args:
-        params: the controller's nominal vehicle parameters; gains: gains and law selection.
+        params: the controller's nominal vehicle parameters; gains: gains and law selection;
+        adaptation: the friction adaptation law and its thresholds.
     """
 
-    def __init__(self, params: VehicleParams, gains: LateralGains) -> None:
+    def __init__(self, params: VehicleParams, gains: LateralGains,
+                 adaptation: AdaptationSettings = PAPER_ADAPTATION) -> None:
         m, iz, cf, cr, lf, lr = params.m, params.Iz, params.Cf, params.Cr, params.lf, params.lr
-        self.gains = gains
+        self.gains, self.adaptation = gains, adaptation
+        self.robust = adaptation.law == "robust"
         self.ls, self.v_min = gains.ls, gains.v_min
         self.k1, self.k2 = gains.ke
         self.feedforward, self.at_cg = gains.law == "feedforward", gains.ff_target == "cg"
@@ -240,6 +332,7 @@ class ScalarLateralLaw:
         self.b0, self.b1 = 2.0 * cf / m, 2.0 * cf * lf / iz
         self.bb = self.b0 * self.b0 + self.b1 * self.b1
         d0, d1 = 1.0 / m, params.lw / iz
+        self.d_norm = math.hypot(d0, d1)
         self.g00, self.g01 = gains.kz + gains.gz * d0 * d0, gains.gz * d0 * d1
         self.g11 = gains.kz + gains.gz * d1 * d1
 
@@ -284,7 +377,7 @@ class ScalarLateralLaw:
 
         Args: as LateralMeasurement's fields (vx measured, floored here), then mu_hat and g_mu.
         """
-        vx = max(vx, self.v_min)
+        vx_measured, vx = vx, max(vx, self.v_min)
         ls, k1, k2 = self.ls, self.k1, self.k2
         y_r, psi_r, y_r_dot, psi_r_dot, vy_r, r_r, vy_r_dot, r_r_dot = self.reference(
             vx, vx_dot, rho, rho_dot, mu_hat)
@@ -301,9 +394,21 @@ class ScalarLateralLaw:
         v0 = (-(self.g00 * z0 + self.g01 * z1) - (mu_hat * a1x0 - vx * r) + alpha_dot0 - e0)
         v1 = (-(self.g01 * z0 + self.g11 * z1) - mu_hat * a1x1 + alpha_dot1 - (ls * e0 + e1))
         delta = (self.b0 * v0 + self.b1 * v1) / (mu_hat * self.bb)
-        mu_hat_dot = (g_mu / mu_hat) * (z0 * (v0 + mu_hat * a1x0) + z1 * (v1 + mu_hat * a1x1))
+        if not self.robust:
+            mu_hat_dot = (g_mu / mu_hat) * (z0 * (v0 + mu_hat * a1x0) + z1 * (v1 + mu_hat * a1x1))
+        else:
+            mu_hat_dot = self._robust_rate(vx_measured, r, z0, z1, v0, v1, a1x0, a1x1, delta, mu_hat, g_mu)
         v1_lyap = 0.5 * (e0 * e0 + e1 * e1)
         return delta, alpha0, alpha1, z0, z1, mu_hat_dot, v1_lyap + 0.5 * (z0 * z0 + z1 * z1)
+
+    def _robust_rate(self, vx: float, r: float, z0: float, z1: float, v0: float, v1: float,
+                     a1x0: float, a1x1: float, delta: float, mu_hat: float, g_mu: float) -> float:
+        """The robust law's mu_hat_dot: g_mu z^T (A1 x + B delta) when AdaptationSettings.adapts."""
+        bd0, bd1 = self.b0 * delta, self.b1 * delta
+        residual = math.hypot(v0 - mu_hat * bd0, v1 - mu_hat * bd1)
+        if not self.adaptation.adapts(vx, r, math.hypot(z0, z1), residual, self.d_norm, self.gains.kz):
+            return 0.0
+        return g_mu * (z0 * (a1x0 + bd0) + z1 * (a1x1 + bd1))
 
 
 def project_mu(mu_hat: float, mu_min: float, mu_max: float) -> float:

@@ -102,7 +102,7 @@ class ReferenceBackstepping:
         meas = LateralMeasurement(y_l=preview["offset"], psi_l=psi_l, vy=vy, r=r, vx=vx,
                                   vx_dot=nominal_vx_dot(torque, vy, r, params), rho=preview["kappa"],
                                   rho_dot=preview["dkappa_ds"] * vx)
-        lat = lateral_law(meas, self.mu_hat, params, gains, c.g_mu)
+        lat = lateral_law(meas, self.mu_hat, params, gains, c.g_mu, c.adaptation)
         rate = c.limits.max_delta_rate * dt
         delta = min(self.delta + rate, max(self.delta - rate, lat.delta))
         delta = self.delta = min(c.limits.max_delta, max(-c.limits.max_delta, delta))

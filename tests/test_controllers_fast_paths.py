@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from controllers.backstepping import BacksteppingController
-from controllers.backstepping_lateral import LateralGains, LateralMeasurement, ScalarLateralLaw, lateral_law
+from controllers.backstepping_lateral import (AdaptationSettings, LateralGains, LateralMeasurement,
+                                             ScalarLateralLaw, lateral_law)
 from controllers.control_common import InputReader
 from controllers.linear_plant import LinearPlant
 from controllers.trajectory import TrajectoryWindow
@@ -111,20 +112,27 @@ def test_projection_fields_match_the_reference_on_every_window():
             assert foot(prepared, px, py, int(k) % 4) == tuple(fast.__dict__.values())
 
 
-@pytest.mark.parametrize("law, target", [("faithful", "cg"), ("feedforward", "cg"), ("feedforward", "preview")])
-def test_scalar_lateral_law_matches_the_numpy_law(law, target):
+@pytest.mark.parametrize("law, target, adaptation", [
+    ("faithful", "cg", "paper"), ("feedforward", "cg", "paper"), ("feedforward", "preview", "paper"),
+    ("faithful", "cg", "robust"), ("feedforward", "cg", "robust")])
+def test_scalar_lateral_law_matches_the_numpy_law(law, target, adaptation):
     rng = np.random.default_rng(3)
     gains = LateralGains(ke=(1.3, 0.7), kz=4.0, gz=2.0e5, ls=6.0, law=law, ff_target=target)
-    scalar = ScalarLateralLaw(PARAMS, gains)
+    settings = AdaptationSettings(law=adaptation, fwy_max=100.0, a_excite=0.3, v_adapt=2.0)
+    scalar = ScalarLateralLaw(PARAMS, gains, settings)
+    gated = 0
     for _ in range(300):
         m = LateralMeasurement(y_l=rng.normal(0, 0.5), psi_l=rng.normal(0, 0.1), vy=rng.normal(0, 0.5),
                                r=rng.normal(0, 0.2), vx=rng.uniform(0.2, 15.0), vx_dot=rng.normal(0, 1),
                                rho=rng.normal(0, 0.02), rho_dot=rng.normal(0, 0.01))
         mu_hat = rng.uniform(0.2, 1.2)
-        ref = lateral_law(m, mu_hat, PARAMS, gains, g_mu=0.5)
+        ref = lateral_law(m, mu_hat, PARAMS, gains, g_mu=0.5, adaptation=settings)
         got = scalar.command(m.y_l, m.psi_l, m.vy, m.r, m.vx, m.vx_dot, m.rho, m.rho_dot, mu_hat, 0.5)
         expected = (ref.delta, *ref.alpha, *ref.z, ref.mu_hat_dot, ref.V2)
         assert got == pytest.approx(expected, rel=1e-11, abs=1e-12)
+        gated += ref.mu_hat_dot == 0.0
+    # the robust law's conditions both freeze and let through some of the random cases
+    assert (gated == 0) if adaptation == "paper" else (30 < gated < 270)
 
 
 def _frozen(window: TrajectoryWindow) -> dict[str, np.ndarray]:
@@ -140,6 +148,8 @@ def _frozen(window: TrajectoryWindow) -> dict[str, np.ndarray]:
     ({}, LinePath(), {"y0": 1.0, "psi0": 0.05, "vx0": 8.0}),
     ({"adaptive": True, "mu0": 0.8}, CirclePath(50.0), {"vx0": 10.0, "y0": 0.3, "mu": 0.9}),
     ({"lateral_law": "feedforward", "adaptive": True, "mu0": 0.4}, CirclePath(40.0), {"vx0": 9.0}),
+    ({"lateral_law": "feedforward", "adaptive": True, "adaptation": "robust", "mu0": 0.6, "fwy_max": 50.0},
+     CirclePath(40.0), {"vx0": 9.0, "y0": 0.2}),
     ({"lateral_law": "feedforward", "ff_target": "preview", "ke": [1.0, 2.0]}, CirclePath(80.0), {"vx0": 11.0}),
     ({"max_delta": 0.05, "max_delta_rate": 0.1, "max_torque": 500.0}, CirclePath(30.0), {"vx0": 6.0, "y0": 2.0}),
 ])
