@@ -35,6 +35,9 @@ BACKSTEPPING = "controllers.backstepping:BacksteppingController"
 #: controller name -> the scenario's `components.controller` entry. The first
 #: is the one the scenario files run; the files list the others as comments.
 CONTROLLERS: dict[str, dict] = {
+    "bs_robust_ff": {"python": BACKSTEPPING, "period": 0.01, "parameters": {
+        "adaptive": True, "adaptation": "robust", "lateral_law": "feedforward", "mu0": 0.8,
+        "mu_min": 0.3, "ke": 4.0, "kz": 20.0}},
     "bs_adaptive_ff": {"python": BACKSTEPPING, "period": 0.01, "parameters": {
         "adaptive": True, "lateral_law": "feedforward", "mu0": 0.8, "mu_min": 0.3, "ke": 4.0,
         "kz": 20.0}},
