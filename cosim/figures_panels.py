@@ -14,6 +14,7 @@ import numpy as np
 from matplotlib.axes import Axes
 
 from cosim import figures_signals as sig
+from cosim.figures_envelope import envelope
 from cosim.metrics import run_cone_hits
 from cosim.metrics_rundata import RunData
 
@@ -29,6 +30,21 @@ def color(i: int) -> str:
 
 def _label(runs: Sequence[RunData], i: int, what: str) -> str:
     return what if len(runs) == 1 else f"{runs[i].label}: {what}"
+
+
+def series_line(ax: Axes, x: np.ndarray, y: np.ndarray, *style: str, scale: float = 1.0,
+                **props) -> None:
+    """Plot y (times scale) against time, decimated by `envelope` (peaks kept exactly).
+
+    Args:
+        ax: the axes to draw in.
+        x, y: time and values, 1-D, one length.
+        style: optional format string ("--").
+        scale: factor applied to the kept values (e.g. a mass for a force).
+        props: Line2D properties (color, lw, label).
+    """
+    xs, ys = envelope(x, y)
+    ax.plot(xs, ys if scale == 1.0 else scale * ys, *style, **props)
 
 
 def _missing(ax: Axes, what: str) -> None:
@@ -61,7 +77,8 @@ def time_series(ax: Axes, runs: Sequence[RunData], getter: Getter, what: str,
     for i, run in enumerate(runs):
         found = getter(run)
         if found is not None:
-            ax.plot(found[0], scale * found[1], color=color(i), lw=1.0, label=_label(runs, i, what))
+            series_line(ax, found[0], found[1], scale=scale, color=color(i), lw=1.0,
+                        label=_label(runs, i, what))
             drawn = True
     if not drawn:
         _missing(ax, what)
@@ -76,8 +93,8 @@ def tracking(ax: Axes, runs: Sequence[RunData], actual: Getter, reference: Gette
         for getter, name, style in ((actual, names[0], "-"), (reference, names[1], "--")):
             found = getter(run)
             if found is not None:
-                ax.plot(found[0], found[1], style, color=color(i), lw=1.0,
-                        label=_label(runs, i, name))
+                series_line(ax, found[0], found[1], style, color=color(i), lw=1.0,
+                            label=_label(runs, i, name))
                 drawn = True
     if not drawn:
         _missing(ax, f"{names[0]}, {names[1]}")
@@ -172,8 +189,8 @@ def acceleration_force(ax: Axes, runs: Sequence[RunData]) -> None:
     for i, run in enumerate(runs):
         found = sig.reference_acceleration(run)
         if found is not None:
-            ax.plot(found[0], sig.vehicle_mass(run) * found[1], color=color(i), lw=1.0,
-                    label=_label(runs, i, "m a_ref"))
+            series_line(ax, found[0], found[1], scale=sig.vehicle_mass(run), color=color(i),
+                        lw=1.0, label=_label(runs, i, "m a_ref"))
             drawn = True
     if not drawn:
         _missing(ax, "a_ref (controller or planner.ref_a)")

@@ -8,13 +8,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).parent))
 from analysis_synthetic import lane_change_run, write_run  # noqa: E402
 
 from cosim import figures_signals as sig  # noqa: E402
 from cosim.compare import run_labels  # noqa: E402
-from cosim.figures import build_figure, choose_layout, draw_figures  # noqa: E402
+from cosim.figures import DPI, build_figure, choose_layout, draw_figures, save_png  # noqa: E402
+from cosim.figures_envelope import BUCKETS, bucket_edges, envelope, envelope_indices  # noqa: E402
 from cosim.metrics import compute_metrics  # noqa: E402
 from cosim.metrics_rundata import AnalysisError, load_run  # noqa: E402
 
@@ -175,3 +179,74 @@ def test_map_marks_the_cones_that_were_hit(tmp_path):
     hit = road["cone hit (2)"]
     assert list(zip(hit.get_xdata(), hit.get_ydata())) == [(10.0, 0.8), (20.0, 0.5)]
     assert list(road["cone"].get_ydata()) == [-1.0]
+
+
+def _naive_envelope_indices(y, buckets):
+    """Per bucket (cosim.figures_envelope.bucket_edges): first, last, argmin, argmax, by a plain loop."""
+    edges = (np.arange(buckets + 1) * len(y)) // buckets
+    keep = set()
+    for a, b in zip(edges[:-1], edges[1:]):
+        seg = y[a:b]
+        keep |= {a, b - 1, a + int(np.argmin(seg)), a + int(np.argmax(seg))}
+    return np.array(sorted(keep))
+
+
+def test_envelope_keeps_each_bucket_first_last_min_max_as_a_plain_loop_does():
+    rng = np.random.default_rng(7)
+    y = np.cumsum(rng.standard_normal(30001)) + np.where(rng.random(30001) < 1e-3, 50.0, 0.0)
+    t = 0.01 * np.arange(y.size)
+    keep = envelope_indices(y, 1000)
+    np.testing.assert_array_equal(keep, _naive_envelope_indices(y, 1000))
+    xs, ys = envelope(t, y, 1000)
+    np.testing.assert_array_equal(xs, t[keep])
+    np.testing.assert_array_equal(ys, y[keep])
+    assert ys.max() == y.max() and ys.min() == y.min() and len(ys) <= 4000
+    short = np.arange(3999.0)                       # under 4 buckets' worth: drawn whole
+    assert envelope(short, short, 1000)[1] is short
+    gappy = y.copy()
+    gappy[5] = np.nan                               # a gap must stay a gap: no decimation
+    assert envelope(t, gappy, 1000)[1] is gappy
+    with pytest.raises(ValueError, match="one length"):
+        envelope(t[:-1], y)
+
+
+def test_long_signals_are_plotted_as_their_envelope_with_every_bucket_peak(tmp_path):
+    n = 20000
+    t = 0.01 * np.arange(n)
+    rng = np.random.default_rng(3)
+    yc = 0.01 * np.sin(0.3 * t) + 1e-3 * rng.standard_normal(n)
+    yc[12345] = 0.2                                  # one-tick spike: must be drawn
+    cols = {"vehicle.x": 10 * t, "vehicle.y": 0 * t, "controller.yc": yc,
+            "vehicle.vx": 10 + 0.1 * rng.standard_normal(n), "controller.vx_ref": 0 * t + 10}
+    run = load_run(write_run(tmp_path / "r", t, cols, {"name": "satory_long"}))
+    fig, _ = build_figure([run], "track")
+    line = _lines(_axes_by_title(fig)["lateral error at CG"])["yc"]
+    x, y = line.get_xdata(), line.get_ydata()
+    assert len(y) <= 4 * BUCKETS < n
+    where = np.searchsorted(t, x)                    # every plotted point is a recorded sample
+    np.testing.assert_array_equal(t[where], x)
+    np.testing.assert_array_equal(yc[where], y)
+    edges = bucket_edges(n, BUCKETS)
+    for a, b in zip(edges[:-1], edges[1:]):
+        inside = (where >= a) & (where < b)
+        assert y[inside].max() == yc[a:b].max() and y[inside].min() == yc[a:b].min()
+    assert x[0] == t[0] and x[-1] == t[-1] and y.max() == 0.2
+    speed = _lines(_axes_by_title(fig)["speed tracking"])
+    np.testing.assert_array_equal(speed["vx"].get_ydata(), cols["vehicle.vx"][
+        _naive_envelope_indices(cols["vehicle.vx"], BUCKETS)])
+
+
+def test_save_png_gives_the_pixels_savefig_gives(tmp_path):
+    def small_figure():
+        fig = Figure(figsize=(4, 3), layout="constrained")
+        ax = fig.subplots(1, 2)[1]
+        ax.plot(np.sin(np.arange(500) * 0.05), label="sin")
+        ax.set_title("a constrained layout")
+        ax.legend(loc="best")
+        FigureCanvasAgg(fig)
+        return fig
+
+    ours = save_png(small_figure(), tmp_path / "ours.png")
+    small_figure().savefig(tmp_path / "theirs.png", dpi=DPI)
+    np.testing.assert_array_equal(np.asarray(Image.open(ours)),
+                                  np.asarray(Image.open(tmp_path / "theirs.png")))
