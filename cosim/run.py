@@ -226,8 +226,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         prestart = _usable_prestart(prestart, transport, placement, deploy)
         launches = plan_launches(scenario, import_classes=transport != "zenoh")
         launches += _placed_fmu_launches(scenario, placement)
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
+        out = _make_run_folder(Path(out_dir))
         run_id = prestart.run_id if prestart is not None else uuid.uuid4().hex[:12]
         remote = None
         if transport == "zenoh":  # spawned before the FMUs load: their start-ups overlap
@@ -239,6 +238,16 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         hosted = _host_components(prepared, remote, clock)
         return _execute(prepared, hosted, remote, out, transport, run_id, realtime, progress,
                         clock)
+
+
+def _make_run_folder(out: Path) -> Path:
+    """Create the run folder; one that cannot be made (a file there, no permission) is a UserError."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot create the run folder {str(out)!r}: "
+                        f"{exc.strerror or exc}") from None
+    return out
 
 
 def _check_run_options(transport: str, realtime: float | None) -> None:

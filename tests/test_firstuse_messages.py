@@ -72,3 +72,19 @@ def test_a_name_that_is_not_a_component_keeps_its_message() -> None:
     with pytest.raises(UserError, match="'cosim.inproc:UserError' is not a "
                                         "cosim.component.Component subclass"):
         import_component_class("cosim.inproc:UserError", "c")
+
+
+@pytest.mark.parametrize("where", ["a_file", "a_file/below"])
+def test_run_folder_that_cannot_be_made_is_a_user_error(tmp_path: Path, where: str) -> None:
+    # `cosim run --out /proc/nope` used to end in a FileNotFoundError traceback.
+    from cosim.errors import UserError
+    from cosim.run import run_scenario
+    path = tmp_path / "s.yaml"
+    path.write_text("name: m\nduration: 0.2\ntick: 0.1\n"
+                    "components:\n  src:\n    python: cosim.sources:Constant\n")
+    (tmp_path / "a_file").write_text("not a folder")
+    out = tmp_path / where
+    with pytest.raises(UserError) as info:
+        run_scenario(load_scenario(path), out, transport="inproc", progress=False)
+    reason = "File exists" if where == "a_file" else "Not a directory"
+    assert str(info.value) == f"cannot create the run folder {str(out)!r}: {reason}"
