@@ -14,6 +14,10 @@ import os
 import time
 
 _STARTTIME_FIELD = 19  # /proc/<pid>/stat field 22 (starttime), counted after "comm)"
+# /proc gives the fork time, not the exec time: `bash -c "pip install ... && cosim run X"`
+# execs cosim in the shell's own process, forked before pip ran. A process that was idle
+# this long (age minus CPU time) before its clock was made was not starting Python then.
+IDLE_BEFORE_EXEC_S = 5.0
 
 
 def process_age_s(pid: int | str = "self") -> float | None:
@@ -48,11 +52,18 @@ class StartupClock:
 
     @classmethod
     def from_process_start(cls) -> "StartupClock":
-        """A clock whose zero is the start of this process (or now, if unknown)."""
+        """A clock whose zero is the start of this process (or now, if unknown).
+
+        When the process sat idle for over IDLE_BEFORE_EXEC_S before the clock was
+        made, it was forked long before it exec'd Python (a shell's last command):
+        its zero is then now, named "clock creation (process forked before exec)".
+        """
         now = time.perf_counter()
         age = process_age_s()
         if age is None:
             return cls(now, "clock creation")
+        if age - time.process_time() > IDLE_BEFORE_EXEC_S:
+            return cls(now, "clock creation (process forked before exec)")
         return cls(now - age, "process start")
 
     @classmethod

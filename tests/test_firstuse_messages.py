@@ -88,3 +88,26 @@ def test_run_folder_that_cannot_be_made_is_a_user_error(tmp_path: Path, where: s
         run_scenario(load_scenario(path), out, transport="inproc", progress=False)
     reason = "File exists" if where == "a_file" else "Not a directory"
     assert str(info.value) == f"cannot create the run folder {str(out)!r}: {reason}"
+
+
+CLOCK_PROBE = ("import cosim.startup as s; s.IDLE_BEFORE_EXEC_S = {limit}; "
+               "c = s.StartupClock.from_process_start(); c.mark('m'); "
+               "print(c.origin_kind, c.marks['m'])")
+
+
+@pytest.mark.parametrize("exec_after_s, limit, kind", [
+    (0.0, 5.0, "process start"),
+    (1.5, 1.0, "clock creation (process forked before exec)"),
+])
+def test_startup_clock_after_a_shell_exec(exec_after_s: float, limit: float, kind: str) -> None:
+    # README's first command, bash -c "... pip install ... && cosim run", execs cosim in a
+    # process forked before pip ran: 'time to tick 0' read 95 s for a 3 s start-up.
+    import subprocess
+    import sys
+    code = CLOCK_PROBE.format(limit=limit)
+    shell = f"sleep {exec_after_s} && exec {sys.executable} -c \"{code}\""
+    out = subprocess.run(["bash", "-c", shell], capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).resolve().parents[1]).stdout.split()
+    assert " ".join(out[:-1]) == kind
+    seconds = float(out[-1])
+    assert 0.0 <= seconds < exec_after_s or exec_after_s == 0.0
