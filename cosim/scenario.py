@@ -223,6 +223,7 @@ def _apply_one(data: Any, text: str, lines: LineMap) -> str | None:
         return f"value {raw!r} is not valid YAML: {reason}{where}"
     node, loc = data, []
     created: tuple[str | int, ...] | None = None
+    note = ""  # a misspelt key that the override created, with the close existing one
     for depth, key in enumerate(keys):
         last = depth == len(keys) - 1
         if isinstance(node, list):
@@ -232,6 +233,8 @@ def _apply_one(data: Any, text: str, lines: LineMap) -> str | None:
         elif isinstance(node, dict):
             index = key
             if not last and key not in node:
+                hint = did_you_mean(key, [k for k in node if isinstance(k, str)])
+                note = note or (f"; it made a new {key!r}{hint}" if hint else "")
                 node[key] = {}
                 created = created or tuple(loc) + (key,)
         else:
@@ -241,7 +244,7 @@ def _apply_one(data: Any, text: str, lines: LineMap) -> str | None:
             node[index] = value
         else:
             node = node[index]
-    lines.detached[created or tuple(loc)] = text
+    lines.detached[created or tuple(loc)] = text + note
     return None
 
 

@@ -111,3 +111,16 @@ def test_startup_clock_after_a_shell_exec(exec_after_s: float, limit: float, kin
     assert " ".join(out[:-1]) == kind
     seconds = float(out[-1])
     assert 0.0 <= seconds < exec_after_s or exec_after_s == 0.0
+
+
+def test_override_through_a_misspelt_component_suggests_the_real_one(tmp_path: Path) -> None:
+    path = tmp_path / "s.yaml"
+    path.write_text("name: s\nduration: 1\ntick: 0.01\ncomponents:\n"
+                    "  controller: {python: cosim.sources:Constant}\n")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path, ["components.controler.parameters.value=2"])
+    assert str(info.value) == (
+        f"{path}: components.controler: a component needs exactly one of 'fmu:' (built-in "
+        "name or path to a .fmu) or 'python:' (module:Class) (set by --set "
+        "components.controler.parameters.value=2; it made a new 'controler' "
+        "(did you mean 'controller'?))")
