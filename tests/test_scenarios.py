@@ -212,6 +212,20 @@ def test_disturbed_track_stays_close_under_gust_and_model_error(tmp_path):
     assert np.max(np.abs(_sig(run, "controller.psiL"))) < 0.05
 
 
+def test_straight_road_gust_moves_the_paper_estimate_not_the_robust_one(tmp_path):
+    """satory_disturbed without the model error: the 1500 N gust at 10-14 s blows on a straight."""
+    mu_hat = {}
+    for adaptation in ("paper", "robust"):
+        run = _run(tmp_path / adaptation, "satory_disturbed", [
+            "duration=16", "components.vehicle.uncertainty={}",
+            f"components.controller.parameters.adaptation={adaptation}"])
+        assert _sig(run, "side_wind.value").max() == 1500.0
+        assert np.max(np.abs(_sig(run, "controller.rho"))) == 0.0        # on the straight throughout
+        mu_hat[adaptation] = _sig(run, "controller.mu_hat")
+    assert np.all(mu_hat["robust"] == 0.8)                 # no excitation: frozen at mu0
+    assert mu_hat["paper"][-1] < 0.75                      # read the gust as lost grip (measured 0.695)
+
+
 @pytest.mark.parametrize("plant,tolerance", [("Bicycle", 1e-3), ("Vehicle8DOF", 0.03)])
 def test_open_loop_yaw_rate_matches_the_linear_bicycle_gain(tmp_path, plant, tolerance):
     """Steady yaw rate of a 0.02 rad step at 10 m/s: r = vx delta / (L + K vx^2)."""
