@@ -18,8 +18,14 @@ d sigma/ds), `psi` is unwrapped and within pi of the vehicle's heading.
 Scalar outputs: s_vehicle (progress along the reference line, m, unwrapped),
 lateral_offset (vehicle CG left of the recommended trajectory, m), v_ref
 (recommended speed at the vehicle), manoeuvre_state (0 keep, 1 lateral
-transition under way, 2 braking to a stop), obstacle_distance (to the next
-obstacle in the vehicle's lane, capped at obstacle_range).
+transition under way, 2 braking to a stop, 3 held at rest), obstacle_distance
+(to the next obstacle in the vehicle's lane, capped at obstacle_range).
+
+A stop ends in finite time (controllers.speed_profile, step 3). Once the
+vehicle is in the stop's final segment (or past it) and slower than
+HOLD_SPEED, the planner holds: state 3 for good, and the recommended window's
+speed and acceleration are 0 everywhere, so the controller's reference is
+rest exactly, even if the car stands a few centimetres short of the point.
 
 Parameters in a scenario YAML, for example:
     road: {builder: two_lane, length: 600, radius: 200}     # or satory_standin, or
@@ -48,7 +54,8 @@ from controllers.trajectory import FIELDS, WINDOW_POINTS, window_ports
 
 ROUTE_DS = 0.25        # m, reference grid the route is laid out on (window points are grid points)
 PROFILE_DS = 0.5       # m, arc-length grid of the speed profiles
-STATE_KEEP, STATE_CHANGING, STATE_STOPPING = 0.0, 1.0, 2.0
+STATE_KEEP, STATE_CHANGING, STATE_STOPPING, STATE_HOLD = 0.0, 1.0, 2.0, 3.0
+HOLD_SPEED = 0.01      # m/s: below it, in the stop's final segment or past it, the vehicle is held
 
 
 class RouteGrid:
@@ -97,17 +104,21 @@ class RoutePlan:
         self.x, self.y, self.psi, kappa, self.sigma = grid.trajectory(option.lateral)
         self.d = option.lateral.evaluate(grid.s)[0]
         sig0, sig1 = np.interp([s_start, s_end], grid.s, self.sigma)
-        sig_u = sig0 + PROFILE_DS * np.arange(int(np.floor((sig1 - sig0) / PROFILE_DS)) + 1)
-        profile = plan_speed(np.interp(sig_u, self.sigma, kappa), PROFILE_DS, limits, from_rest, stop,
+        steps = int(np.ceil((sig1 - sig0) / PROFILE_DS - 1e-9))
+        ds = (sig1 - sig0) / steps             # at most PROFILE_DS, so the profile ends exactly at sig1
+        sig_u = sig0 + ds * np.arange(steps + 1)
+        profile = plan_speed(np.interp(sig_u, self.sigma, kappa), ds, limits, from_rest, stop,
                              s0=sig0, v_start=None if from_rest else v_start)
         self.v, self.a = profile.at(self.sigma)
         self.kappa = kappa
         self.stops = stop
-        self.brake_from = np.inf
+        self.brake_from = self.final_from = np.inf
         if stop:
-            going = np.nonzero(profile.a > -1e-6)[0]
+            going = np.nonzero(profile.a[:-1] > -1e-6)[0]       # the last point (at rest) has a = 0 too
             at = profile.s[going[-1]] if going.size else sig0
             self.brake_from = float(np.interp(at, self.sigma, grid.s))
+            final = profile.s[-1] if profile.final_from is None else profile.final_from
+            self.final_from = float(np.interp(final, self.sigma, grid.s))
 
     def window(self, idx: slice, psi_shift: float, prefix: str) -> dict[str, np.ndarray]:
         """Port values `<prefix>_<field>` of the window made of the grid points idx (a slice),
@@ -134,7 +145,7 @@ class Planner(Component):
         Port("s_vehicle", unit="m", description="vehicle progress along the road reference line"),
         Port("lateral_offset", unit="m", description="vehicle CG left of the recommended trajectory"),
         Port("v_ref", unit="m/s", description="recommended speed at the vehicle"),
-        Port("manoeuvre_state", description="0 keep, 1 lateral transition, 2 braking to a stop"),
+        Port("manoeuvre_state", description="0 keep, 1 lateral transition, 2 braking to a stop, 3 held at rest"),
         Port("obstacle_distance", unit="m", description="to the next obstacle in the vehicle's lane")))
 
     def __init__(self, road="satory_standin", lane=0, manoeuvre=None, speed=None,
@@ -190,6 +201,7 @@ class Planner(Component):
         self.road_limit = float(max(np.abs(self.road.edges()))) + self.off_road
         self.ref_route: RoutePlan | None = None
         self.alt_route: RoutePlan | None = None
+        self.holding = False
 
     def _spacing(self, minimum: float, preview: float, period: float) -> int:
         """Window spacing, in route grid steps, that covers the required reach."""
@@ -226,6 +238,7 @@ class Planner(Component):
         except SpecError as exc:
             raise ComponentError(f"at t = {t0}: {exc}") from None
         self.offset = proj.lateral
+        self.holding = False
         return self._outputs(t0, psi, vx)
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
@@ -298,15 +311,28 @@ class Planner(Component):
         out["s_vehicle"] = float(self.progress)
         out["lateral_offset"] = float(self.offset - np.interp(self.progress, self.grid.s, self.ref_route.d))
         out["v_ref"] = float(np.interp(self.progress, self.grid.s, self.ref_route.v))
-        out["manoeuvre_state"] = self._state()
+        out["manoeuvre_state"] = self._update_state(vx)
+        if self.holding:      # stopped: the reference is rest, exactly, wherever the car stands
+            out["ref_v"] = np.zeros(WINDOW_POINTS)
+            out["ref_a"] = np.zeros(WINDOW_POINTS)
+            out["v_ref"] = 0.0
         out["obstacle_distance"] = self._obstacle_distance(self.offset)
         return out
 
-    def _state(self) -> float:
-        """manoeuvre_state at the current progress."""
+    def _update_state(self, vx: float) -> float:
+        """manoeuvre_state at the current progress; enters (and latches) the hold.
+
+        Hold: the route stops, the vehicle is in the stop's final segment or past
+        it and slower than HOLD_SPEED.
+        """
+        if self.holding:
+            return STATE_HOLD
         if self.plan.ref.lateral.active(self.progress):
             return STATE_CHANGING
         if self.ref_route.stops and self.progress >= self.ref_route.brake_from:
+            if self.progress >= self.ref_route.final_from and vx < HOLD_SPEED:
+                self.holding = True
+                return STATE_HOLD
             return STATE_STOPPING
         return STATE_KEEP
 

@@ -13,6 +13,16 @@ the longitudinal acceleration is a = du/ds, and the jerk is v d^2u/ds^2.
    |d^2u/ds^2| <= 2 A / W with A = max(a_max, d_max). With
    W = 2 v_max A / j_max the jerk v d^2u/ds^2 is then at most j_max.
 
+3. Stop: the smoothing alone ends as u ~ (s_stop - s)^2, i.e. v proportional
+   to the distance left, which a follower never covers (v decays
+   exponentially). So the smoothing is redone with its stop moved a few metres
+   on, and from the point where the distance left equals the length of a
+   jerk-limited final segment (controllers.speed_stop: jerk -j, constant -d_max
+   if needed, then +j until a = 0 exactly when v = 0) that segment replaces
+   the tail: v reaches 0 at s_stop in finite time, with |a| <= d_max and
+   |jerk| <= j_max (v ~ (s_stop - s)^(2/3) in the last phase).
+   `SpeedProfile.final_from` says where it starts.
+
 Starting from rest the profile has v = 0 and a = 0 at its first point, and it
 leaves it only as v ~ s: a vehicle sitting exactly there would wait forever,
 so the planner puts the profile's start a little behind the vehicle.
@@ -25,9 +35,13 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from controllers import speed_stop
 from controllers.spec import SpecError, spec_number
 
 V_LIMIT = 50.0 / 3.6   # the paper's domain: below 50 km/h
+# The final stop segment takes over below d_max^2 / j_max, clipped to these speeds (m/s): high
+# enough for the 0.5 m grid to resolve the tail, low enough that no road curve limits it.
+JOIN_SPEED_RANGE = (1.0, 3.0)
 
 
 @dataclass(frozen=True)
@@ -78,11 +92,16 @@ class SpeedProfile:
         s: grid, m (uniform spacing).
         v: reference speed, m/s.
         a: reference acceleration v dv/ds, m/s^2.
+        final_from: where the final stop segment (controllers.speed_stop) takes
+            over, or None (no stop, or no join found: the smoothed tail is kept).
+        final_state: (v, a) at final_from, the segment's initial state, or None.
     """
 
     s: np.ndarray
     v: np.ndarray
     a: np.ndarray
+    final_from: float | None = None
+    final_state: tuple[float, float] | None = None
 
     def at(self, s) -> tuple[np.ndarray, np.ndarray]:
         """(v, a) at arc lengths s, linearly interpolated, held beyond the ends.
@@ -125,30 +144,16 @@ def _smooth(u: np.ndarray, half: int, left: float | None, right: float | None) -
     return (csum[width:] - csum[:-width]) / width
 
 
-def plan_speed(kappa, ds: float, limits: SpeedLimits, start_from_rest: bool = True,
-               stop_at_end: bool = True, s0: float = 0.0, v_start: float | None = None) -> SpeedProfile:
-    """The reference speed profile along a path (see the module docstring).
-
-    Args:
-        kappa: path curvature on the uniform grid s0 + i ds (at least 2 points).
-        ds: grid spacing, m.
-        limits: comfort limits.
-        start_from_rest: v = 0 at the first point (else v_start, or the limit there).
-        stop_at_end: v = 0 at the last point and beyond.
-        s0: arc length of the first point.
-        v_start: speed at the first point when not starting from rest (None: free).
-    """
-    kappa = np.asarray(kappa, dtype=float)
-    if kappa.ndim != 1 or kappa.size < 2 or not np.all(np.isfinite(kappa)):
-        raise SpecError("speed profile: curvature must be a finite array of at least 2 points")
-    ds = spec_number(ds, "speed profile ds", positive=True)
+def _smoothed_u(kappa: np.ndarray, ds: float, limits: SpeedLimits, start_from_rest: bool,
+                stop_at_end: bool, v_start: float | None) -> np.ndarray:
+    """u = v^2/2 on the grid: limits, acceleration passes, jerk smoothing (module docstring)."""
     with np.errstate(divide="ignore"):
         v_lim = np.minimum(limits.v_max, np.sqrt(limits.a_lat_max / np.abs(kappa)))
     u_lim = 0.5 * v_lim ** 2
     if start_from_rest:
         u_lim[0] = 0.0
     elif v_start is not None:
-        u_lim[0] = min(u_lim[0], 0.5 * spec_number(v_start, "v_start") ** 2)
+        u_lim[0] = min(u_lim[0], 0.5 * v_start ** 2)
     if stop_at_end:
         u_lim[-1] = 0.0
     u = _passes(u_lim, limits.a_max * ds, limits.d_max * ds)
@@ -160,6 +165,60 @@ def plan_speed(kappa, ds: float, limits: SpeedLimits, start_from_rest: bool = Tr
         u[0] = 0.0
     if stop_at_end:
         u[-1] = 0.0
-    a = np.gradient(u, ds)
-    s = s0 + ds * np.arange(u.size)
-    return SpeedProfile(s=s, v=np.sqrt(2.0 * u), a=a)
+    return u
+
+
+def _stopping(kappa: np.ndarray, ds: float, limits: SpeedLimits, start_from_rest: bool,
+              v_start: float | None, s0: float) -> SpeedProfile | None:
+    """The profile that stops at its last point through the final segment
+    (controllers.speed_stop), or None if no join point was found.
+
+    The smoothing is redone with its stop moved on by a whole number of grid
+    steps until the final segment meets it (twice at most in practice).
+    """
+    n, j, d = kappa.size, limits.j_max, limits.d_max
+    v_join_max = min(max(d * d / j, JOIN_SPEED_RANGE[0]), JOIN_SPEED_RANGE[1])
+    s_stop = s0 + ds * (n - 1)
+    extra = 0
+    for _ in range(4):
+        grid_kappa = np.concatenate([kappa, np.full(extra, kappa[-1])])
+        u = _smoothed_u(grid_kappa, ds, limits, start_from_rest, True, v_start)
+        a = np.gradient(u, ds)
+        s = s0 + ds * np.arange(u.size)
+        s_join = speed_stop.join_point(s, u, a, s_stop, j, d, v_join_max)
+        if s_join is not None:
+            v, a, state = speed_stop.splice(s, u, a, s_join, s_stop, j, d)
+            return SpeedProfile(s=s[:n], v=v[:n], a=a[:n], final_from=s_join, final_state=state)
+        more = speed_stop.missing_shift(s, u, a, s_stop, j, d, v_join_max)
+        if more is None:
+            return None
+        extra += max(1, int(np.floor(more / ds)))
+    return None
+
+
+def plan_speed(kappa, ds: float, limits: SpeedLimits, start_from_rest: bool = True,
+               stop_at_end: bool = True, s0: float = 0.0, v_start: float | None = None) -> SpeedProfile:
+    """The reference speed profile along a path (see the module docstring).
+
+    Args:
+        kappa: path curvature on the uniform grid s0 + i ds (at least 2 points).
+        ds: grid spacing, m.
+        limits: comfort limits.
+        start_from_rest: v = 0 at the first point (else v_start, or the limit there).
+        stop_at_end: v = 0 at the last point and beyond, reached in finite time.
+        s0: arc length of the first point.
+        v_start: speed at the first point when not starting from rest (None: free).
+    """
+    kappa = np.asarray(kappa, dtype=float)
+    if kappa.ndim != 1 or kappa.size < 2 or not np.all(np.isfinite(kappa)):
+        raise SpecError("speed profile: curvature must be a finite array of at least 2 points")
+    ds = spec_number(ds, "speed profile ds", positive=True)
+    if v_start is not None and not start_from_rest:
+        v_start = spec_number(v_start, "v_start")
+    s = s0 + ds * np.arange(kappa.size)
+    if stop_at_end:
+        found = _stopping(kappa, ds, limits, start_from_rest, v_start, s0)
+        if found is not None:
+            return found
+    u = _smoothed_u(kappa, ds, limits, start_from_rest, stop_at_end, v_start)
+    return SpeedProfile(s=s, v=np.sqrt(2.0 * u), a=np.gradient(u, ds))

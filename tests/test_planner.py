@@ -106,11 +106,17 @@ def test_obstacle_with_blocked_lane_stops_before_it():
     assert stop + comfort.vehicle_length / 2 + comfort.gap == pytest.approx(OBSTACLE["s"])
     grid, route = planner.grid, planner.ref_route
     assert np.all(route.v[grid.s >= stop] == 0.0)
-    # a vehicle that follows the reference speed exactly never reaches the stop point
-    s, dt = 0.0, 0.01
-    for _ in range(int(90 / dt)):
+    # a vehicle that follows the reference speed exactly comes to the stop point, never past it,
+    # a few seconds after the final segment takes over (the old exponential tail was 0.3 m short
+    # after 90 s); the last 0.25 m route cell is linear in s, so the very end is exponential
+    # with time constant 0.25 m / v(0.25 m before), about 0.3 s
+    s, t, dt, entered = 0.0, 0.0, 1e-3, None
+    while stop - s > 0.01 and t < 90.0:
         s += dt * float(np.interp(s, grid.s, route.v))
-    assert stop - 0.3 < s <= stop
+        t += dt
+        if entered is None and s >= route.final_from:
+            entered = t
+    assert stop - 0.01 <= s <= stop and entered is not None and t - entered < 5.0
     # the alternative goes around through the blocked lane (recorded, not followed)
     assert planner.alt_route.stops and len(planner.plan.alt.lateral.transitions) == 2
 
@@ -126,6 +132,28 @@ def test_manoeuvre_state_and_obstacle_distance_while_braking():
     braking = stations >= planner.ref_route.brake_from
     assert np.all(states[braking] == 2.0) and np.all(states[~braking] == 0.0) and braking.any()
     np.testing.assert_allclose([o["obstacle_distance"] for o in outs], OBSTACLE["s"] - stations, atol=1e-6)
+
+
+def test_hold_at_the_stop_point_latches_with_a_zero_reference():
+    blocker = {"s": 150.0, "lane": 1, "length": 100.0, "width": 2.0}
+    planner = Planner(road="two_lane",
+                      manoeuvre={"type": "obstacle_avoidance", "obstacles": [OBSTACLE, blocker]})
+    start(planner)
+    route, stop = planner.ref_route, planner.plan.ref.stop_s
+    assert route.brake_from < route.final_from < stop
+    inside = 0.5 * (route.final_from + stop)
+    moving = planner.step(0.1, {**pose_on_ref(planner, inside), "vx": 0.5})
+    assert moving["manoeuvre_state"] == 2.0 and moving["v_ref"] > 0.0
+    early = planner.step(0.2, {**pose_on_ref(planner, route.final_from - 1.0), "vx": 0.005})
+    assert early["manoeuvre_state"] == 2.0          # slow but before the final segment: no hold
+    held = planner.step(0.3, {**pose_on_ref(planner, stop - 0.03), "vx": 0.005})
+    assert held["manoeuvre_state"] == 3.0 and held["v_ref"] == 0.0
+    assert np.all(held["ref_v"] == 0.0) and np.all(held["ref_a"] == 0.0)
+    assert np.interp(stop - 0.03, planner.grid.s, route.v) > 0.0   # the plan itself still creeps there
+    later = planner.step(0.4, {**pose_on_ref(planner, stop - 0.03), "vx": 0.02})
+    assert later["manoeuvre_state"] == 3.0 and np.all(later["ref_v"] == 0.0)   # latched
+    start(planner)                                   # a new run starts unheld
+    assert planner.step(0.1, {**pose_on_ref(planner, 5.0), "vx": 0.0})["manoeuvre_state"] == 0.0
 
 
 def test_plan_obstacles_ignores_obstacles_outside_the_lane():
