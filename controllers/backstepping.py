@@ -17,8 +17,9 @@ Each step:
 5. steering from the lateral law with mu_hat (adaptive) or mu0, then the angle
    and rate limits.
 
-Adaptation: `adaptation` "paper" is EQUATIONS.md's law, "robust" adds the
-conditions of backstepping_lateral's docstring (dead zone, excitation, speed).
+Adaptation: `adaptation` "paper" is EQUATIONS.md's law; "robust" (derived in
+backstepping_lateral's docstring) uses the regressor of the steer actually
+commanded and adapts only outside a dead zone, while excited and above v_adapt.
 Anti-windup (both): mu_hat is frozen for the next step when the steering command was
 limited (the law's assumption that mu B delta acts fully is then false), and
 below v_min. Low speed: below v_min the lateral law uses v_min in place of vx
@@ -28,6 +29,8 @@ non-zero on a curve, so the adaptation law drifts even when mu_hat = mu (on
 R = 50 m at 10 m/s, mu = 1, mu_hat0 = 1: 0.49 after 10 s, then mu_min). With
 lateral_law "feedforward" z vanishes at equilibrium and the estimate moves to
 the true friction (0.4 -> 0.96 and 1.0 -> 0.60 for mu = 1.0 / 0.6 in 10 s).
+adaptation "robust" removes that drift (and the drift under a side force on a
+straight road or near a stop); tests/test_controllers_adaptation.py compares.
 No trajectory yet (an all-zero window): steering held, torque 0, internals 0.
 V3 uses `mu_true`, a diagnostic parameter the control law never reads.
 """

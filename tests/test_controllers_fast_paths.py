@@ -148,8 +148,8 @@ def _frozen(window: TrajectoryWindow) -> dict[str, np.ndarray]:
     ({}, LinePath(), {"y0": 1.0, "psi0": 0.05, "vx0": 8.0}),
     ({"adaptive": True, "mu0": 0.8}, CirclePath(50.0), {"vx0": 10.0, "y0": 0.3, "mu": 0.9}),
     ({"lateral_law": "feedforward", "adaptive": True, "mu0": 0.4}, CirclePath(40.0), {"vx0": 9.0}),
-    ({"lateral_law": "feedforward", "adaptive": True, "adaptation": "robust", "mu0": 0.6, "fwy_max": 50.0},
-     CirclePath(40.0), {"vx0": 9.0, "y0": 0.2}),
+    ({"lateral_law": "feedforward", "adaptive": True, "adaptation": "robust", "mu0": 0.6,
+      "fwy_max": 50.0}, CirclePath(40.0), {"vx0": 9.0, "y0": 0.2}),
     ({"lateral_law": "feedforward", "ff_target": "preview", "ke": [1.0, 2.0]}, CirclePath(80.0), {"vx0": 11.0}),
     ({"max_delta": 0.05, "max_delta_rate": 0.1, "max_torque": 500.0}, CirclePath(30.0), {"vx0": 6.0, "y0": 2.0}),
 ])
