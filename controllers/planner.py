@@ -109,6 +109,7 @@ class RoutePlan:
         sig_u = sig0 + ds * np.arange(steps + 1)
         profile = plan_speed(np.interp(sig_u, self.sigma, kappa), ds, limits, from_rest, stop,
                              s0=sig0, v_start=None if from_rest else v_start)
+        self.profile = profile                    # on the trajectory's own arc length
         self.v, self.a = profile.at(self.sigma)
         self.kappa = kappa
         self.stops = stop

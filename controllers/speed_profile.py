@@ -15,12 +15,14 @@ the longitudinal acceleration is a = du/ds, and the jerk is v d^2u/ds^2.
 
 3. Stop: the smoothing alone ends as u ~ (s_stop - s)^2, i.e. v proportional
    to the distance left, which a follower never covers (v decays
-   exponentially). So the smoothing is redone with its stop moved a few metres
-   on, and from the point where the distance left equals the length of a
-   jerk-limited final segment (controllers.speed_stop: jerk -j, constant -d_max
-   if needed, then +j until a = 0 exactly when v = 0) that segment replaces
-   the tail: v reaches 0 at s_stop in finite time, with |a| <= d_max and
-   |jerk| <= j_max (v ~ (s_stop - s)^(2/3) in the last phase).
+   exponentially). So from the strongest deceleration of the final braking on,
+   a jerk-limited final segment (controllers.speed_stop: jerk -j, constant
+   -d_max, then +j until a = 0 exactly when v = 0) replaces the tail; the
+   smoothing is redone with its stop moved a few metres on, so that the two
+   meet where the segment ends exactly at s_stop. v reaches 0 at s_stop in
+   finite time with |a| <= d_max and |jerk| <= j_max (v ~ (s_stop - s)^(2/3)
+   in the last phase). If that segment would break a curve's speed limit, it
+   takes over at a low speed instead (JOIN_SPEED_RANGE).
    `SpeedProfile.final_from` says where it starts.
 
 Starting from rest the profile has v = 0 and a = 0 at its first point, and it
@@ -173,11 +175,30 @@ def _stopping(kappa: np.ndarray, ds: float, limits: SpeedLimits, start_from_rest
     """The profile that stops at its last point through the final segment
     (controllers.speed_stop), or None if no join point was found.
 
+    First choice: the segment takes over where the final braking is strongest,
+    so the deceleration stays there (up to d_max) and is released only at the
+    end. If that segment would be too fast for a curve near the stop, it takes
+    over at a low speed instead (see JOIN_SPEED_RANGE).
+    """
+    found = _stop_with(kappa, ds, limits, start_from_rest, v_start, s0, None)
+    if found is not None:
+        with np.errstate(divide="ignore"):
+            v_lim = np.minimum(limits.v_max, np.sqrt(limits.a_lat_max / np.abs(kappa)))
+        if np.all(found.v <= v_lim + 1e-9):
+            return found
+    j, d = limits.j_max, limits.d_max
+    v_join_max = min(max(d * d / j, JOIN_SPEED_RANGE[0]), JOIN_SPEED_RANGE[1])
+    return _stop_with(kappa, ds, limits, start_from_rest, v_start, s0, v_join_max)
+
+
+def _stop_with(kappa: np.ndarray, ds: float, limits: SpeedLimits, start_from_rest: bool,
+               v_start: float | None, s0: float, v_join_max: float | None) -> SpeedProfile | None:
+    """_stopping with one choice of join region (speed_stop.join_point's v_join_max).
+
     The smoothing is redone with its stop moved on by a whole number of grid
-    steps until the final segment meets it (twice at most in practice).
+    steps until the final segment meets it (once or twice in practice).
     """
     n, j, d = kappa.size, limits.j_max, limits.d_max
-    v_join_max = min(max(d * d / j, JOIN_SPEED_RANGE[0]), JOIN_SPEED_RANGE[1])
     s_stop = s0 + ds * (n - 1)
     extra = 0
     for _ in range(4):

@@ -1,23 +1,24 @@
-"""The last metres of a stop: a jerk-limited final segment that reaches v = 0 in finite time.
+"""The end of a stop: a jerk-limited final segment that reaches v = 0 in finite time.
 
 The smoothed profile of controllers.speed_profile ends as u = v^2/2 ~ (s_stop - s)^2,
 so v ~ distance left: a vehicle following it approaches the stop point
 exponentially and never arrives. The final segment replaces that tail with a
 time-domain manoeuvre from the state (v1, a1 <= 0) where it joins the profile:
 
-    phase 1: jerk -j for tau_a   (deceleration grows to |a_p|)
-    phase 2: jerk +j for tau_b   (deceleration released, a = 0 exactly when v = 0)
+    phase 1: jerk -j until a = a_p            (tau_1 = (a1 - a_p) / j)
+    phase 2: a = a_p = -d, if needed           (tau_2)
+    phase 3: jerk +j until a = 0, when v = 0   (tau_3 = -a_p / j)
 
-with a_p = -sqrt(a1^2 / 2 + j v1), tau_a = (a1 - a_p) / j, tau_b = -a_p / j
-(from v = 0 and a = 0 at the end). Near the stop, v = (j/2) tau^2 and the
-distance left is j tau^3 / 6, so v ~ (distance left)^(2/3) and the stop point
-is reached after tau_a + tau_b seconds. Joining at v1 <= d^2 / (2 j) keeps
-|a_p| <= d since |a1| <= d.
+with a_p = -min(sqrt(a1^2 / 2 + j v1), d): the two-phase solution of v = 0 and
+a = 0 at the end, capped at the deceleration bound. In the last phase
+v = (j/2) tau^2 and the distance left is j tau^3 / 6, so v ~ (distance
+left)^(2/3) and the stop point is reached after tau_1 + tau_2 + tau_3 seconds.
 
-The join point is where the distance left equals the segment's length. The
-smoothed tail is slow near the end (the segment from it would stop short), so
-the smoothing is redone with its stop point moved `delta` further on (the
-`shift` the caller asks for), which raises the tail until the two meet.
+The join point is where the distance left equals the segment's length,
+searched from the strongest deceleration of the final braking on (or, when
+the caller asks, below a join speed). The smoothed tail is slower than the
+segment would be there (the segment from it stops short), so the caller redoes
+the smoothing with its stop moved on (`missing_shift`) until the two meet.
 """
 
 from __future__ import annotations
@@ -92,21 +93,38 @@ def segment_samples(v1: float, a1: float, j: float, d: float
     return t, x, np.maximum(v, 0.0), a
 
 
+def _tail_start(s: np.ndarray, a: np.ndarray, v: np.ndarray, s_stop: float,
+                v_join_max: float | None) -> int:
+    """First index of the tail where the final segment may take over.
+
+    With v_join_max None: the last point of strongest deceleration in the final
+    braking (the run of a < 0 that ends at s_stop). Else: the first point after
+    the last one faster than v_join_max.
+    """
+    if v_join_max is not None:
+        fast = np.nonzero(v > v_join_max)[0]
+        return int(fast[-1]) + 1 if fast.size else 0
+    last = int(np.nonzero(s <= s_stop)[0][-1])
+    coasting = np.nonzero(a[:last + 1] >= 0.0)[0]
+    first = int(coasting[-1]) + 1 if coasting.size else 0
+    if first > last:
+        return s.size
+    braking = a[first:last + 1]
+    return first + int(np.nonzero(braking <= braking.min() + 1e-9)[0][-1])
+
+
 def _tail_gaps(s: np.ndarray, u: np.ndarray, a: np.ndarray, s_stop: float, j: float, d: float,
-               v_join_max: float) -> tuple[np.ndarray, np.ndarray]:
+               v_join_max: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the profile's tail where a join may be, and their gaps.
 
-    The tail is the run of grid points after the last one faster than
-    v_join_max, up to s_stop. A point is usable if v > 0 and j v >= a^2 / 2
-    (else the segment would need negative phase times). Its gap is the
-    distance left minus the segment's length: >= 0 means the segment from there
-    stops short of s_stop (or exactly at it).
+    The tail runs from _tail_start up to s_stop. A point is usable if v > 0 and
+    j v >= a^2 / 2 (else the segment would need negative phase times). Its gap
+    is the distance left minus the segment's length: >= 0 means the segment
+    from there stops short of s_stop (or exactly at it).
     """
     v = np.sqrt(2.0 * np.maximum(u, 0.0))
     a1 = np.minimum(a, 0.0)
-    fast = np.nonzero(v > v_join_max)[0]
-    first = fast[-1] + 1 if fast.size else 0
-    idx = np.arange(first, s.size)
+    idx = np.arange(_tail_start(s, a, v, s_stop, v_join_max), s.size)
     idx = idx[s[idx] <= s_stop]
     idx = idx[(v[idx] > 0.0) & (j * v[idx] >= 0.5 * a1[idx] ** 2)]
     gap = (s_stop - s[idx]) - segment_length(v[idx], a1[idx], j, d)
@@ -114,16 +132,18 @@ def _tail_gaps(s: np.ndarray, u: np.ndarray, a: np.ndarray, s_stop: float, j: fl
 
 
 def join_point(s: np.ndarray, u: np.ndarray, a: np.ndarray, s_stop: float, j: float, d: float,
-               v_join_max: float) -> float | None:
+               v_join_max: float | None) -> float | None:
     """Arc length where the final segment from the profile's state ends exactly at s_stop.
 
-    Finds two consecutive usable tail points (see _tail_gaps) whose gaps go from
-    >= 0 to < 0, then bisects between them on the linearly interpolated profile.
+    Finds the first two consecutive usable tail points (see _tail_gaps) whose gaps
+    go from >= 0 to < 0, then bisects between them on the linearly interpolated profile.
 
     Args:
         s, u, a: the profile's grid, u = v^2/2 and a = du/ds (may run past s_stop).
         s_stop: the stop point.
-        j, d: jerk and deceleration bounds; v_join_max: highest speed allowed at the join.
+        j, d: jerk and deceleration bounds.
+        v_join_max: highest speed allowed at the join; None: from the strongest
+            deceleration of the final braking on.
 
     Returns:
         The join's arc length, or None if the gaps never change sign.
@@ -132,7 +152,7 @@ def join_point(s: np.ndarray, u: np.ndarray, a: np.ndarray, s_stop: float, j: fl
     change = np.nonzero((gap[:-1] >= 0.0) & (gap[1:] < 0.0) & (np.diff(idx) == 1))[0]
     if change.size == 0:
         return None
-    lo, hi = float(s[idx[change[-1]]]), float(s[idx[change[-1]] + 1])
+    lo, hi = float(s[idx[change[0]]]), float(s[idx[change[0]] + 1])
 
     def g(x: float) -> float:
         ux, ax = np.interp(x, s, u), min(float(np.interp(x, s, a)), 0.0)
@@ -170,7 +190,7 @@ def splice(s: np.ndarray, u: np.ndarray, a: np.ndarray, s_join: float, s_stop: f
 
 
 def missing_shift(s: np.ndarray, u: np.ndarray, a: np.ndarray, s_stop: float, j: float, d: float,
-                  v_join_max: float) -> float | None:
+                  v_join_max: float | None) -> float | None:
     """How much further on the smoothed tail must move for the final segment to meet it.
 
     At the tail's first usable point (the fastest, see _tail_gaps) the distance

@@ -45,8 +45,11 @@ def test_obstacle_blocked_stops_within_the_physical_time_and_holds(tmp_path):
     bound = v0 / speed["d_max"] + speed["d_max"] / speed["j_max"] + width / v0 + 6 * tau
     stopped = int(np.nonzero(vx >= 0.01)[0][-1]) + 1        # vx < 0.01 m/s from here to the end
     assert stopped < len(t) and t[stopped] - t[braking] < bound
-    # no reverse, no oscillation: the speed only falls from the start of braking on
-    assert vx.min() >= 0.0 and np.all(np.diff(vx[braking:]) <= 1e-12)
+    # no reverse, no oscillation: past the speed loop's lag at the onset (the speed tops out
+    # within a second, by less than 1 cm/s), the speed only falls
+    peak = braking + int(np.argmax(vx[braking:]))
+    assert t[peak] - t[braking] < 1.0 and vx[peak] - v0 < 0.01
+    assert vx.min() >= 0.0 and np.all(np.diff(vx[peak:]) <= 1e-12)
     # the planner holds: state 3 to the end, reference exactly 0
     held = int(np.argmax(state == 3.0))
     assert state[held] == 3.0 and np.all(state[held:] == 3.0) and np.all(v_ref[held:] == 0.0)

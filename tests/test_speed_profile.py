@@ -179,3 +179,16 @@ def test_a_follower_of_the_profile_reaches_the_stop_point_in_finite_time():
         s += dt * float(prof.at(s)[0])
         t += dt
     assert prof.s[-1] - s < 1e-3 and t < 10.0        # the old tail (v ~ distance) never got there
+
+
+@pytest.mark.parametrize("radius, length", [(10.0, 30.0), (3.0, 15.0), (1.5, 10.0)])
+def test_stop_in_a_tight_curve_keeps_the_curve_limit_and_still_ends_at_rest(radius, length):
+    limits = SpeedLimits()
+    kappa = np.zeros(800)
+    kappa[-int(length / DS):] = 1.0 / radius             # the stop point lies in the curve
+    prof = plan_speed(kappa, DS, limits)
+    v_curve = np.sqrt(limits.a_lat_max * radius)
+    assert prof.final_from is not None and prof.v[-1] == 0.0 and prof.a[-1] == 0.0
+    assert np.all(prof.v[kappa != 0.0] <= v_curve + 1e-9) and prof.v.max() <= limits.v_max + 1e-9
+    assert prof.a.min() >= -limits.d_max - 1e-9
+    assert np.abs(jerk(prof)).max() <= limits.j_max + 1e-9
