@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import fnmatch
 import json
+import socket
 import sys
 import time
 from collections.abc import Iterable, Sequence
@@ -31,6 +32,7 @@ from cosim.cli_common import user_error_exit
 from cosim.errors import UserError
 
 MANIFEST_WAIT_S = 10.0  # a run folder named just after `cosim run` printed it
+CONNECT_TIMEOUT_S = 3.0  # a live endpoint that does not accept TCP by then is not there
 
 
 def select_names(names: Iterable[str], patterns: Sequence[str]) -> list[str]:
@@ -104,6 +106,28 @@ def resolve_target(target: str, connect: str | None,
     return target, connect
 
 
+def check_reachable(endpoint: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """Raise UserError when nothing accepts a TCP connection at a tcp/ or tls/ endpoint.
+
+    A Zenoh peer whose endpoint is dead opens anyway and waits in silence, so
+    watching an ended run (or a mistyped port) would print nothing forever.
+
+    Args:
+        endpoint: e.g. "tcp/127.0.0.1:7447"; other protocols are not checked.
+        timeout_s: how long to wait for the connection.
+    """
+    proto, _, address = endpoint.partition("/")
+    host, _, port = address.rpartition(":")
+    if proto not in ("tcp", "tls") or not host or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s).close()
+    except OSError as exc:
+        reason = exc.strerror or f"no answer within {timeout_s:g} s"
+        raise UserError(f"nothing answers at {endpoint} ({reason}): the run has ended, "
+                        f"or the endpoint is not the one `cosim run` printed") from None
+
+
 def watch_lines(run_id: str, endpoint: str, patterns: Sequence[str], every: int,
                 count: int) -> Iterable[str]:
     """The lines `cosim watch` prints, until the run ends or `count` lines (0: no limit).
@@ -150,6 +174,7 @@ def watch(
         if every < 1 or count < 0:
             raise UserError(f"--every must be >= 1 and --count >= 0, got {every} and {count}")
         run_id, endpoint = resolve_target(target, connect, MANIFEST_WAIT_S)
+        check_reachable(endpoint)
         what = "every run" if run_id == "*" else f"run {run_id}"
         print(f"watching {what} at {endpoint} (Ctrl-C to stop)", file=sys.stderr,
               flush=True)

@@ -124,3 +124,21 @@ def test_override_through_a_misspelt_component_suggests_the_real_one(tmp_path: P
         "name or path to a .fmu) or 'python:' (module:Class) (set by --set "
         "components.controler.parameters.value=2; it made a new 'controler' "
         "(did you mean 'controller'?))")
+
+
+def test_watch_of_an_ended_run_says_nothing_answers(capsys: pytest.CaptureFixture[str]) -> None:
+    # A Zenoh peer opens on a dead endpoint and waits in silence: watching an ended
+    # run used to print "watching ..." and nothing else, forever.
+    import socket
+
+    from cosim.cli import main
+    from cosim.cli_watch import check_reachable
+    with socket.socket() as listener:
+        listener.bind(("127.0.0.1", 0))
+        listener.listen()
+        port = listener.getsockname()[1]
+        check_reachable(f"tcp/127.0.0.1:{port}")  # a listener: no error
+    assert main(["watch", "r1", "--connect", f"tcp/127.0.0.1:{port}"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"error: nothing answers at tcp/127.0.0.1:{port} (Connection refused): the run has "
+        "ended, or the endpoint is not the one `cosim run` printed")
