@@ -169,18 +169,23 @@ def analyse_run_folder(result: Any, figures: bool) -> list[str]:
         figures: draw the PNG figures too.
     """
     from cosim.metrics import write_metrics
+    from cosim.metrics_rundata import load_run
 
+    try:
+        run = load_run(result.out_dir)  # signals.csv parsed once, for metrics and figures
+    except Exception as exc:  # analysis is best effort after a run
+        return [f"metrics not computed: {exc}"] + ([f"figures not drawn: {exc}"] if figures else [])
     notes: list[str] = []
     try:
-        write_metrics(result.out_dir)
+        write_metrics(result.out_dir, run=run)
         result.metrics = json.loads((result.out_dir / "metrics.json").read_text())
-    except Exception as exc:  # analysis is best effort after a run
+    except Exception as exc:
         notes.append(f"metrics not computed: {exc}")
     if figures:
         try:
             from cosim.figures import draw_figures
 
-            notes += [f"figure: {path}" for path in draw_figures(result.out_dir)]
+            notes += [f"figure: {path}" for path in draw_figures(result.out_dir, run=run)]
         except Exception as exc:
             notes.append(f"figures not drawn: {exc}")
     return notes

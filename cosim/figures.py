@@ -33,7 +33,7 @@ from PIL import Image
 
 from cosim import figures_panels as pan
 from cosim import figures_signals as sig
-from cosim.metrics_rundata import AnalysisError, RunData, load_run
+from cosim.metrics_rundata import AnalysisError, RunData, loaded_run
 
 LAYOUTS = ("track", "manoeuvre")
 MANOEUVRE_WORDS = ("lane", "obstacle", "iso3888", "manoeuvre", "maneuver")
@@ -161,16 +161,19 @@ def save_png(fig: Figure, path: Path) -> Path:
     return path
 
 
-def draw_figures(run_dir: str | Path, layout: str | None = None) -> list[Path]:
+def draw_figures(run_dir: str | Path, layout: str | None = None,
+                 run: RunData | None = None) -> list[Path]:
     """Draw the paper-style figure of a run into its folder.
 
     Args:
         run_dir: the run folder; the PNG is written there as `figure_<layout>.png`.
         layout: "track", "manoeuvre" or None to choose from the scenario.
+        run: `run_dir` already loaded (`load_run`), so a caller that also writes
+            the metrics parses signals.csv once; None loads it here.
 
     Returns:
         The PNG files written.
     """
-    run = load_run(run_dir)
+    run = loaded_run(run_dir, run)
     fig, layout = build_figure([run], layout)
     return [save_png(fig, Path(run_dir) / f"figure_{layout}.png")]

@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from cosim.metrics_cones import cone_hits
-from cosim.metrics_rundata import AnalysisError, RunData, load_run, read_json_object
+from cosim.metrics_rundata import (AnalysisError, RunData, load_run, loaded_run,
+                                   read_json_object)
 
 METRIC_NAMES = (
     "rms_yc", "max_abs_yc", "rms_yL", "max_abs_yL", "rms_psiL", "max_abs_psiL",
@@ -253,7 +254,8 @@ def compute_metrics(run_dir: str | Path, skip_s: float | None = None) -> dict[st
     return analyse_run(load_run(run_dir), skip_s).values
 
 
-def write_metrics(run_dir: str | Path, skip_s: float | None = None) -> MetricsReport:
+def write_metrics(run_dir: str | Path, skip_s: float | None = None,
+                  run: RunData | None = None) -> MetricsReport:
     """Compute the metrics and merge them into `run_dir/metrics.json`.
 
     Keys other components wrote stay; this module's keys are replaced (a metric
@@ -262,9 +264,11 @@ def write_metrics(run_dir: str | Path, skip_s: float | None = None) -> MetricsRe
     Args:
         run_dir: the run folder.
         skip_s: initial transient to exclude (s); None: from the scenario.
+        run: `run_dir` already loaded (`load_run`), so a caller that also draws
+            the figures parses signals.csv once; None loads it here.
     """
     run_dir = Path(run_dir)
-    report = analyse_run(load_run(run_dir), skip_s)
+    report = analyse_run(loaded_run(run_dir, run), skip_s)
     path = run_dir / "metrics.json"
     merged = {k: v for k, v in read_json_object(path).items() if k not in METRIC_NAMES}
     merged.update(report.values)

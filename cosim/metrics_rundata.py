@@ -27,7 +27,34 @@ class AnalysisError(UserError):
 
 
 def _parse_rows(path: Path, lines: Sequence[str], width: int) -> np.ndarray:
-    """Parse CSV data lines into a (rows, width) float array, naming bad lines."""
+    """Parse CSV data lines into a (rows, width) float array, naming bad lines.
+
+    numpy's C reader converts each field with the same correctly rounded
+    conversion as `float()` (CPython's PyOS_string_to_double), so its floats are
+    bit-identical to the line-by-line parse, several times faster. But it skips
+    blank lines and its errors do not name the value: a table it refuses, or
+    returns with another shape, goes through the line-by-line parse, which
+    names the first bad line (or, for text only `float()` reads, such as "1_0",
+    returns the array).
+
+    Args:
+        path: the file, for messages.
+        lines: the data lines (no header, no line ends).
+        width: the number of fields every line must have.
+    """
+    if not lines:
+        return np.empty((0, width))
+    try:
+        data = np.loadtxt(lines, dtype=np.float64, delimiter=",", comments=None, ndmin=2)
+    except ValueError:
+        data = None
+    if data is not None and data.shape == (len(lines), width):
+        return data
+    return _parse_rows_slowly(path, lines, width)
+
+
+def _parse_rows_slowly(path: Path, lines: Sequence[str], width: int) -> np.ndarray:
+    """`_parse_rows` one line at a time with `float()`: the reference, and the error messages."""
     data = np.empty((len(lines), width))
     for i, line in enumerate(lines):
         fields = line.split(",")
@@ -231,3 +258,22 @@ def load_run(run_dir: str | Path) -> RunData:
     header, data = read_csv_table(path)
     columns = {name: data[:, i] for i, name in enumerate(header) if i > 0}
     return RunData(run_dir, data[:, 0], columns, read_json_object(run_dir / "manifest.json"))
+
+
+def loaded_run(run_dir: str | Path, run: RunData | None) -> RunData:
+    """`run` when given (`run_dir` loaded once by the caller), else `load_run(run_dir)`.
+
+    Args:
+        run_dir: the run folder the caller writes into.
+        run: the folder already loaded, or None.
+
+    Raises:
+        AnalysisError: `run` was loaded from another folder (its results would
+            be written beside the wrong run's files).
+    """
+    if run is None:
+        return load_run(run_dir)
+    if Path(run_dir).resolve() != run.run_dir.resolve():
+        raise AnalysisError(f"{run_dir}: the run data given was loaded from another folder, "
+                            f"{run.run_dir}")
+    return run

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import sys
 from pathlib import Path
 
@@ -250,3 +251,44 @@ def test_save_png_gives_the_pixels_savefig_gives(tmp_path):
     small_figure().savefig(tmp_path / "theirs.png", dpi=DPI)
     np.testing.assert_array_equal(np.asarray(Image.open(ours)),
                                   np.asarray(Image.open(tmp_path / "theirs.png")))
+
+
+def test_draw_figures_with_a_loaded_run_draws_the_same_png_without_the_csv(tmp_path):
+    run_dir = lane_change_run(tmp_path / "r")
+    (png,) = draw_figures(run_dir)
+    first = png.read_bytes()
+    run = load_run(run_dir)
+    (run_dir / "signals.csv").unlink()
+    png.unlink()
+    assert draw_figures(run_dir, run=run) == [png]
+    assert png.read_bytes() == first
+    with pytest.raises(AnalysisError, match="loaded from another folder"):
+        draw_figures(lane_change_run(tmp_path / "other"), run=run)
+
+
+def test_run_command_analysis_parses_signals_once_with_the_same_outputs(tmp_path, monkeypatch):
+    """cosim run's finish step: one load_run for metrics and figures, same files as two loads."""
+    from types import SimpleNamespace
+
+    from cosim import metrics_rundata
+    from cosim.cli import analyse_run_folder
+    from cosim.metrics import write_metrics
+
+    separate = lane_change_run(tmp_path / "separate" / "run")  # same name: same legend
+    write_metrics(separate)
+    draw_figures(separate)
+    once = lane_change_run(tmp_path / "once" / "run")
+    loads = []
+    real_load = metrics_rundata.load_run
+    monkeypatch.setattr(metrics_rundata, "load_run", lambda d: loads.append(d) or real_load(d))
+    result = SimpleNamespace(out_dir=once, metrics={})
+    notes = analyse_run_folder(result, figures=True)
+    assert loads == [once]
+    assert notes == [f"figure: {once / 'figure_manoeuvre.png'}"]
+    for name in ("metrics.json", "figure_manoeuvre.png"):
+        assert (once / name).read_bytes() == (separate / name).read_bytes()
+    assert result.metrics == json.loads((once / "metrics.json").read_text())
+    (once / "signals.csv").write_text("time,a\n0.0,x\n")
+    message = f"{once / 'signals.csv'}:2: value 'x' is not a number"
+    assert analyse_run_folder(result, figures=True) == [f"metrics not computed: {message}",
+                                                        f"figures not drawn: {message}"]

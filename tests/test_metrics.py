@@ -17,7 +17,8 @@ from analysis_synthetic import write_run  # noqa: E402
 from cosim.compare import run_metrics  # noqa: E402
 from cosim.metrics import compute_metrics, ordered_metric_names, rms, write_metrics  # noqa: E402
 from cosim.metrics_cones import cone_hits, cones_inside  # noqa: E402
-from cosim.metrics_rundata import AnalysisError, load_run  # noqa: E402
+from cosim import metrics_rundata as rundata  # noqa: E402
+from cosim.metrics_rundata import AnalysisError, load_run, read_csv_table  # noqa: E402
 
 T = np.arange(0, 201) * 0.01  # 0..2 s inclusive: two whole periods of 1 Hz
 
@@ -237,3 +238,106 @@ def test_partial_last_row_is_dropped_and_missing_folder_is_clear(tmp_path):
         compute_metrics(tmp_path)
     with pytest.raises(AnalysisError, match="no such run folder"):
         compute_metrics(tmp_path / "nope")
+
+
+# --- signals.csv parsing: numpy's reader against float() -------------------------------------
+
+TRICKY_TEXTS = ["-0.0", "0.0", "1e-300", "5e-324", "-5e-324", "2.225073858507201e-308",
+                "2.2250738585072014e-308", "1.7976931348623157e308", "-1.7976931348623157e308",
+                "0.30000000000000004", "1.0000000000000002", "0.1", "123456789.12345679",
+                "9007199254740993", "2.4703282292062328e-324", "2.4703282292062327e-324",
+                "0.1000000000000000055511151231257827", "1e400", "-1e-400", "inf", "-inf",
+                "nan", "-nan", "4.9406564584124654e-324", "8.98846567431158e307"]
+
+
+def _write_table(path: Path, rows: list[list[str]]) -> Path:
+    header = ",".join(["time"] + [f"c{i}" for i in range(len(rows[0]) - 1)])
+    path.write_text(header + "\n" + "\n".join(",".join(r) for r in rows) + "\n")
+    return path
+
+
+def _no_slow_path(monkeypatch):
+    """Make a fallback to the line-by-line parse fail the test: the fast path must read it."""
+    def refuse(*args):
+        raise AssertionError("fell back to the line-by-line parse")
+    monkeypatch.setattr(rundata, "_parse_rows_slowly", refuse)
+
+
+def test_fast_parse_is_bit_identical_to_float_on_tricky_values(tmp_path, monkeypatch):
+    rows = [[str(i), text, text.lstrip("-")] for i, text in enumerate(TRICKY_TEXTS)]
+    path = _write_table(tmp_path / "signals.csv", rows)
+    expected = np.array([[float(f) for f in row] for row in rows])
+    _no_slow_path(monkeypatch)
+    header, data = read_csv_table(path)
+    assert header == ["time", "c0", "c1"]
+    assert data.tobytes() == expected.tobytes()  # bits: -0.0, NaN signs and subnormals included
+    assert np.signbit(data[0, 1]) and data[3, 1] == 5e-324 and data[7, 1] == 1.7976931348623157e308
+
+
+def test_fast_parse_round_trips_every_repr_of_random_bit_patterns(tmp_path, monkeypatch):
+    rng = np.random.default_rng(20)
+    values = rng.integers(0, 2**64, size=(3000, 4), dtype=np.uint64, endpoint=False).view(np.float64)
+    values = np.where(np.isfinite(values), values, -0.0)
+    values[:, 0] = rng.uniform(-300.0, 300.0, size=3000)  # the usual magnitudes of a run
+    rows = [[repr(float(v)) for v in row] for row in values]
+    path = _write_table(tmp_path / "signals.csv", rows)
+    slow = rundata._parse_rows_slowly(path, [",".join(r) for r in rows], 4)
+    _no_slow_path(monkeypatch)
+    _, fast = read_csv_table(path)
+    assert fast.tobytes() == values.tobytes()
+    assert slow.tobytes() == values.tobytes()
+
+
+@pytest.mark.parametrize("field", [" 1.5", "1.5 ", "\t2", "+1", "1.", ".5", "1_0", "\u0661",
+                                   "", "  ", "0x10", "1d3", "e5", "1e", "--1", "True", "#1",
+                                   "'1'", '"1"', "1\x00", "1,0", "2.0\r3.0"])
+def test_fast_and_slow_parse_agree_on_odd_fields(tmp_path, field):
+    """Either the same bits, or the same error naming the file, line and value."""
+    path = tmp_path / "signals.csv"
+    lines = ["0.0,1.0", "0.01," + field, "0.02,3.0"]
+
+    def outcome(parse):
+        try:
+            return parse(path, lines, 2).tobytes()
+        except AnalysisError as error:
+            return str(error)
+
+    fast, slow = outcome(rundata._parse_rows), outcome(rundata._parse_rows_slowly)
+    assert fast == slow
+    if isinstance(slow, str):
+        assert slow.startswith(f"{path}:3: ")
+
+
+def test_blank_line_and_bad_value_deep_in_a_long_file_are_named(tmp_path):
+    rows = [[repr(0.01 * i), repr(float(i))] for i in range(2000)]
+    lines = [",".join(r) for r in rows]
+    path = tmp_path / "signals.csv"
+    path.write_text("time,a\n" + "\n".join(lines[:1500] + [""] + lines[1500:]) + "\n")
+    with pytest.raises(AnalysisError, match=re.escape(f"{path}:1502: expected 2 fields, found 1")):
+        read_csv_table(path)
+    lines[1700] = "17.0,0.5.1"
+    path.write_text("time,a\n" + "\n".join(lines) + "\n")
+    with pytest.raises(AnalysisError, match=re.escape(f"{path}:1702: value '0.5.1' is not a number")):
+        read_csv_table(path)
+
+
+def test_header_only_file_reads_as_no_rows(tmp_path):
+    path = tmp_path / "signals.csv"
+    path.write_text("time,a,b\n")
+    header, data = read_csv_table(path)
+    assert header == ["time", "a", "b"] and data.shape == (0, 3)
+
+
+def test_write_metrics_with_a_loaded_run_does_not_read_the_csv_again(tmp_path):
+    run_dir = write_run(tmp_path / "r", T, {"controller.yc": 0.3 * np.sin(2 * np.pi * T),
+                                            "controller.delta": 0.1 * T})
+    write_metrics(run_dir)
+    from_disk = (run_dir / "metrics.json").read_bytes()
+    run = load_run(run_dir)
+    (run_dir / "signals.csv").unlink()
+    (run_dir / "metrics.json").unlink()
+    write_metrics(run_dir, run=run)
+    assert (run_dir / "metrics.json").read_bytes() == from_disk
+    other = write_run(tmp_path / "other", T, {"controller.yc": T})
+    with pytest.raises(AnalysisError, match="loaded from another folder"):
+        write_metrics(other, run=run)
