@@ -15,8 +15,8 @@ import time
 
 _STARTTIME_FIELD = 19  # /proc/<pid>/stat field 22 (starttime), counted after "comm)"
 # /proc gives the fork time, not the exec time: `bash -c "pip install ... && cosim run X"`
-# execs cosim in the shell's own process, forked before pip ran. A process that was idle
-# this long (age minus CPU time) before its clock was made was not starting Python then.
+# execs cosim in the shell's own process, forked before pip ran. A process that had been
+# idle this long (age minus CPU time) when it imported cosim was not starting Python then.
 IDLE_BEFORE_EXEC_S = 5.0
 
 
@@ -54,16 +54,19 @@ class StartupClock:
     def from_process_start(cls) -> "StartupClock":
         """A clock whose zero is the start of this process (or now, if unknown).
 
-        When the process sat idle for over IDLE_BEFORE_EXEC_S before the clock was
-        made, it was forked long before it exec'd Python (a shell's last command):
-        its zero is then now, named "clock creation (process forked before exec)".
+        When the process had been idle for over IDLE_BEFORE_EXEC_S by the time it
+        imported cosim, it was forked long before it exec'd Python (a shell's last
+        command): its zero is then that import, "cosim import (process forked before exec)".
         """
+        from cosim import IMPORTED_AT
+
         now = time.perf_counter()
         age = process_age_s()
         if age is None:
             return cls(now, "clock creation")
-        if age - time.process_time() > IDLE_BEFORE_EXEC_S:
-            return cls(now, "clock creation (process forked before exec)")
+        imported, cpu_then = IMPORTED_AT
+        if age - (now - imported) - cpu_then > IDLE_BEFORE_EXEC_S:
+            return cls(imported, "cosim import (process forked before exec)")
         return cls(now - age, "process start")
 
     @classmethod

@@ -97,7 +97,7 @@ CLOCK_PROBE = ("import cosim.startup as s; s.IDLE_BEFORE_EXEC_S = {limit}; "
 
 @pytest.mark.parametrize("exec_after_s, limit, kind", [
     (0.0, 5.0, "process start"),
-    (1.5, 1.0, "clock creation (process forked before exec)"),
+    (1.5, 1.0, "cosim import (process forked before exec)"),
 ])
 def test_startup_clock_after_a_shell_exec(exec_after_s: float, limit: float, kind: str) -> None:
     # README's first command, bash -c "... pip install ... && cosim run", execs cosim in a
