@@ -284,8 +284,10 @@ def _parameter_problem(interface: FmuInterface, name: str, value: float) -> str 
         return f"parameter {name!r} of FMU {fmu!r} cannot be set: it is {interface.unsupported[name]}"
     info = interface.parameters.get(name)
     if info is None:
-        return (f"FMU {fmu!r} has no parameter {name!r}"
-                f"{did_you_mean(name, interface.parameters, n=3)}")
+        hint = did_you_mean(name, interface.parameters, n=3)
+        if not hint:  # nothing close: list what can be set instead
+            hint = "; its parameters: " + (", ".join(sorted(interface.parameters)) or "none")
+        return f"FMU {fmu!r} has no parameter {name!r}{hint}"
     if not math.isfinite(value):
         return f"parameter {name!r} = {value!r} is not finite"
     if info.min is not None and value < info.min:

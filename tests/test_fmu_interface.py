@@ -197,6 +197,14 @@ def test_check_parameters_lists_every_problem(tmp_path: Path) -> None:
         check_parameters(iface, {"m": float("nan")}, "vehicle")
 
 
+def test_unknown_parameter_without_close_match_lists_the_valid_names(tmp_path: Path) -> None:
+    iface = describe_fmu(make_fmu(tmp_path, fmi2_xml()), {"m": "mass"})
+    with pytest.raises(FmuInterfaceError) as info:
+        check_parameters(iface, {"cx_drag": 1.0}, "vehicle")
+    assert str(info.value) == ("component 'vehicle': FMU 'Plant' has no parameter 'cx_drag'; "
+                               "its parameters: m")
+
+
 def test_check_parameters_names_yaml_line_of_value_and_of_uncertainty(tmp_path: Path) -> None:
     fmu = make_fmu(tmp_path, fmi2_xml())
     (tmp_path / "s.yaml").write_text(
@@ -211,7 +219,8 @@ def test_check_parameters_names_yaml_line_of_value_and_of_uncertainty(tmp_path: 
     assert str(info.value).splitlines() == [
         f"{file}:12: components.vehicle.uncertainty.m: parameter 'm' = 5200 is above its "
         "maximum 5000",
-        f"{file}:10: components.vehicle.parameters.Iz: FMU 'Plant' has no parameter 'Iz'",
+        f"{file}:10: components.vehicle.parameters.Iz: FMU 'Plant' has no parameter 'Iz'; "
+        "its parameters: m",
     ]
     assert fmu == scenario.resolve_fmu_path(scenario.components["vehicle"])
 
