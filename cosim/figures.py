@@ -6,7 +6,7 @@ Two layouts, after the paper:
   mu_hat vs true mu, steering angle delta.
 - "manoeuvre" (Fig. 5/6): seven panels: the map across the top with the
   planner's recommended and alternative windows, then curvature, yL, psiL,
-  steering angle, speed tracking and the reference acceleration force m a_ref.
+  steering angle, speed tracking and the reference acceleration force m·a_ref.
 
 The layout comes from the scenario's `metrics.figures` ("track" or
 "manoeuvre") when given; else a scenario name with "lane", "obstacle",

@@ -190,8 +190,9 @@ def acceleration_force(ax: Axes, runs: Sequence[RunData]) -> None:
         found = sig.reference_acceleration(run)
         if found is not None:
             series_line(ax, found[0], found[1], scale=sig.vehicle_mass(run), color=color(i),
-                        lw=1.0, label=_label(runs, i, "m a_ref"))
+                        lw=1.0, label=_label(runs, i, "m·a_ref"))
             drawn = True
     if not drawn:
         _missing(ax, "a_ref (controller or planner.ref_a)")
-    _finish(ax, "reference acceleration force", "time (s)", "m a_ref (N)")
+    _finish(ax, "reference acceleration force", "time (s)",
+            "reference acceleration force m·a_ref (N)")

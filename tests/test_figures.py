@@ -55,8 +55,10 @@ def test_manoeuvre_layout_has_seven_panels_with_both_trajectories(tmp_path):
     road = axes["road and planned trajectories"]
     alt = [line for line in road.get_lines() if line.get_color() == "tab:orange"]
     assert alt and all(np.all(line.get_ydata() == 3.5) for line in alt)
-    force = _lines(axes["reference acceleration force"])["m a_ref"]
+    force_axes = axes["reference acceleration force"]
+    force = _lines(force_axes)["m·a_ref"]
     np.testing.assert_allclose(force.get_ydata(), 1500.0 * 0.2)
+    assert force_axes.get_ylabel() == "reference acceleration force m·a_ref (N)"
 
 
 def test_reference_acceleration_takes_the_window_point_nearest_the_vehicle(tmp_path):
