@@ -8,21 +8,42 @@ component fails mid-way exits with status 1 after writing what it has.
 
 from __future__ import annotations
 
-import contextlib
-import datetime
-import json
 import signal
 import sys
-from collections.abc import Iterator, Sequence
-from pathlib import Path
-from typing import Any, Optional
 
-import typer
-from rich.console import Console
-from rich.markup import escape
 
-from cosim.cli_common import user_error_exit
-from cosim.errors import UserError
+def _early_interrupt(signum: int, frame: object) -> None:
+    """Ctrl-C while the command line loads: one line and the failed-run status, no traceback."""
+    running = sys.argv[1:2] == ["run"]
+    sys.stderr.write("run failed: interrupted before tick 0\n" if running else "cosim: interrupted\n")
+    raise SystemExit(1)
+
+
+def _is_cosim_program() -> bool:
+    """True when this process is the `cosim` command (not a test importing the module)."""
+    program = sys.argv[0].replace("\\", "/").rsplit("/", 1)[-1] if sys.argv else ""
+    return program in ("cosim", "cli.py") or __name__ == "__main__"
+
+
+if _is_cosim_program() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    try:
+        signal.signal(signal.SIGINT, _early_interrupt)  # typer and rich take ~0.2 s to import
+    except ValueError:  # not the main thread: leave signals alone
+        pass
+
+import contextlib  # noqa: E402
+import datetime  # noqa: E402
+import json  # noqa: E402
+from collections.abc import Iterator, Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any, Optional  # noqa: E402
+
+import typer  # noqa: E402
+from rich.console import Console  # noqa: E402
+from rich.markup import escape  # noqa: E402
+
+from cosim.cli_common import user_error_exit  # noqa: E402
+from cosim.errors import UserError  # noqa: E402
 
 DEFAULT_TRANSPORT = "zenoh"  # DESIGN.md: each Python component its own OS process
 EXIT_FAILED_RUN = 1
@@ -65,24 +86,47 @@ def run(
                                   help="start component processes while the scenario loads"),
 ) -> None:
     """Run a scenario and write its run folder."""
+    from cosim.run import check_run_options
     from cosim.startup import StartupClock
 
     clock = StartupClock.from_process_start()  # time to tick 0 as the user sees it
-    early = None
-    if prestart and transport == "zenoh" and not (place or listen or connect or deploy):
-        from cosim.prestart import prestart_components
-
-        early = prestart_components(scenario)  # their start overlaps the scenario's load
+    _restore_interrupts()  # from here a Ctrl-C is handled below and by the run
     try:
+        check_run_options(transport, realtime)  # option errors come before anything else
+    except UserError as error:
+        raise user_error_exit(error) from None
+    early = None
+    try:
+        if prestart and transport == "zenoh" and not (place or listen or connect or deploy):
+            from cosim.prestart import prestart_components
+
+            early = prestart_components(scenario)  # their start overlaps the scenario's load
         result = _load_and_run(scenario, set_, out, (deploy, listen, connect), clock,
                                transport=transport, realtime=realtime, place=place,
                                deadline_s=deadline, prestart=early)
     except UserError as error:
         raise user_error_exit(error) from None
+    except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
+        raise _interrupted_exit() from None
     finally:
         if early is not None:
             early.close()
     _finish_run(result, figures)
+
+
+def _restore_interrupts() -> None:
+    """Give Ctrl-C back to Python (KeyboardInterrupt) once the command has started."""
+    if signal.getsignal(signal.SIGINT) is _early_interrupt:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def _interrupted_exit() -> typer.Exit:
+    """Say the run was interrupted before tick 0; the exit of a failed run (status 1)."""
+    from cosim.run_abort import INTERRUPTED_BEFORE_TICK0
+
+    Console(stderr=True, highlight=False, soft_wrap=True).print(
+        f"[red]run failed:[/red] {INTERRUPTED_BEFORE_TICK0}", markup=True)
+    return typer.Exit(EXIT_FAILED_RUN)
 
 
 def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path],
@@ -106,14 +150,19 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
     loaded = load_scenario(scenario_file, overrides=overrides)
     clock.mark("scenario_loaded")
     folder = out if out is not None else default_run_dir(loaded.name)
-    print(f"run folder: {folder}", flush=True)
     settings = None
     if endpoints[0] is not None or endpoints[1] or endpoints[2]:
         from cosim.worker_cli import load_settings
         settings = load_settings(*endpoints)
     with _sigterm_interrupts():
         return run_scenario(loaded, folder, progress=sys.stdout.isatty(), deploy=settings,
-                            clock=clock, on_live=_print_live, **run_options)
+                            clock=clock, on_live=_print_live, on_folder=_print_folder,
+                            **run_options)
+
+
+def _print_folder(folder: Path) -> None:
+    """Tell the user where the run is written (called once the folder exists)."""
+    print(f"run folder: {folder}", flush=True)
 
 
 def _finish_run(result: Any, figures: bool) -> None:
@@ -285,6 +334,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         argv: arguments (default: sys.argv[1:]).
     """
     args = normalize_realtime(sys.argv[1:] if argv is None else argv)
+    if args[:1] != ["run"]:  # `run` keeps the quiet Ctrl-C until its own handling starts
+        _restore_interrupts()
     command = typer.main.get_command(app)
     try:
         command.main(args=args, prog_name="cosim", standalone_mode=True)

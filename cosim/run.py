@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 from cosim.errors import UserError
 from cosim.launch import PythonComponentLaunch
+from cosim.run_abort import start_failure_text, write_start_failure
 from cosim.startup import StartupClock
 
 if TYPE_CHECKING:  # loaded when needed: the Zenoh processes start before numpy/fmpy load
@@ -188,7 +189,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  deadline_s: float = DEFAULT_DEADLINE_S, place: Sequence[str] = (),
                  deploy: Any = None, clock: StartupClock | None = None,
                  on_live: Callable[[str, str], None] | None = None,
-                 prestart: Any = None) -> RunResult:
+                 prestart: Any = None,
+                 on_folder: Callable[[Path], None] | None = None) -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -211,13 +213,16 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         prestart: a `cosim.prestart.Prestart` (component processes started
             while the scenario loaded): used for a local zenoh run, ended
             otherwise; always closed before returning.
+        on_folder: called with the run folder once it is created (after the
+            checks that need no component running); from then on a run that
+            fails before tick 0 leaves a manifest.json with status "failed".
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
     Raises:
         UserError for anything wrong before tick 0 (scenario, FMU, wiring).
     """
-    _check_run_options(transport, realtime)
+    check_run_options(transport, realtime)
     clock = clock or StartupClock.from_now()
     with contextlib.ExitStack() as stack:
         if prestart is not None:
@@ -228,16 +233,23 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         launches += _placed_fmu_launches(scenario, placement)
         out = _make_run_folder(Path(out_dir))
         run_id = prestart.run_id if prestart is not None else uuid.uuid4().hex[:12]
-        remote = None
-        if transport == "zenoh":  # spawned before the FMUs load: their start-ups overlap
-            remote = _spawn_remote(launches, run_id, deadline_s, placement, deploy, stack,
-                                   prestart, clock, on_live)
-        local_fmus = [p for p in plan_fmus(scenario) if p.name not in placement]
-        prepared = PreparedRun(scenario, local_fmus, launches, _names(scenario),
-                               placement, deploy)
-        hosted = _host_components(prepared, remote, clock)
-        return _execute(prepared, hosted, remote, out, transport, run_id, realtime, progress,
-                        clock)
+        try:
+            if on_folder is not None:
+                on_folder(out)
+            remote = None
+            if transport == "zenoh":  # spawned before the FMUs load: their start-ups overlap
+                remote = _spawn_remote(launches, run_id, deadline_s, placement, deploy, stack,
+                                       prestart, clock, on_live)
+            local_fmus = [p for p in plan_fmus(scenario) if p.name not in placement]
+            prepared = PreparedRun(scenario, local_fmus, launches, _names(scenario),
+                                   placement, deploy)
+            hosted = _host_components(prepared, remote, clock)
+            return _execute(prepared, hosted, remote, out, transport, run_id, realtime,
+                            progress, clock)
+        except BaseException as exc:  # the announced folder says why the run never started
+            write_start_failure(out, scenario, run_id, transport, start_failure_text(exc),
+                                clock.as_dict())
+            raise
 
 
 def _make_run_folder(out: Path) -> Path:
@@ -250,8 +262,13 @@ def _make_run_folder(out: Path) -> Path:
     return out
 
 
-def _check_run_options(transport: str, realtime: float | None) -> None:
-    """Reject an unknown transport or a non-positive real-time factor (UserError)."""
+def check_run_options(transport: str, realtime: float | None) -> None:
+    """Reject an unknown transport or a non-positive real-time factor (UserError).
+
+    Args:
+        transport: the `--transport` value.
+        realtime: the `--realtime` factor, or None.
+    """
     if transport not in TRANSPORTS:
         raise UserError(f"unknown transport {transport!r} (choose from {', '.join(TRANSPORTS)})")
     if realtime is not None and not realtime > 0:
