@@ -14,6 +14,7 @@ import numpy as np
 from matplotlib.axes import Axes
 
 from cosim import figures_signals as sig
+from cosim import figures_zoom as zoom
 from cosim.figures_envelope import envelope
 from cosim.metrics import run_cone_hits
 from cosim.metrics_rundata import RunData
@@ -101,11 +102,6 @@ def tracking(ax: Axes, runs: Sequence[RunData], actual: Getter, reference: Gette
     _finish(ax, title, "time (s)", ylabel)
 
 
-def _vehicle_xy(run: RunData) -> sig.Series | None:
-    x, y = run.signal("vehicle.x"), run.signal("vehicle.y")
-    return None if x is None or y is None else (x, y)
-
-
 def _windows(ax: Axes, run: RunData, prefix: str, style: dict, label: str, count: int) -> None:
     """Draw `count` of the run's recorded windows, evenly spread in time."""
     found = sig.window(run, prefix)
@@ -150,7 +146,7 @@ def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False
             _windows(ax, run, "ref", {"color": "tab:green"}, _label(runs, i, "recommended"), 6)
             _windows(ax, run, "alt", {"color": "tab:orange", "ls": "--"},
                      _label(runs, i, "alternative"), 6)
-        xy = _vehicle_xy(run)
+        xy = zoom.vehicle_xy(run)
         if xy is not None:
             ax.plot(xy[0], xy[1], color=color(i), lw=1.2, label=_label(runs, i, "vehicle"))
             drawn = True
@@ -162,18 +158,10 @@ def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False
     _finish(ax, title, "x (m)", "y (m)")
 
 
-def zoom_map(ax: Axes, runs: Sequence[RunData], half_width: float = 5.0) -> None:
-    """The map zoomed on the place of the first run's largest |yc|."""
-    trajectory_map(ax, runs, title="zoom on tracking (largest |yc|)")
-    first = runs[0]
-    yc, xy = sig.lateral_cg(first), _vehicle_xy(first)
-    if yc is None or xy is None or len(yc[1]) == 0:
-        return
-    k = int(np.argmax(np.abs(yc[1])))
-    cx, cy = xy[0][k], xy[1][k]
-    ax.set_aspect("equal", adjustable="box")
-    ax.set_xlim(cx - half_width, cx + half_width)
-    ax.set_ylim(cy - half_width, cy + half_width)
+def zoom_map(ax: Axes, runs: Sequence[RunData]) -> None:
+    """The vehicle and planned paths around the largest |yc| of all runs (cosim.figures_zoom)."""
+    zoom.zoom_map(ax, runs, [color(i) for i in range(len(runs))],
+                  [_label(runs, i, "vehicle") for i in range(len(runs))])
 
 
 def friction(ax: Axes, runs: Sequence[RunData]) -> None:

@@ -294,3 +294,65 @@ def test_run_command_analysis_parses_signals_once_with_the_same_outputs(tmp_path
     message = f"{once / 'signals.csv'}:2: value 'x' is not a number"
     assert analyse_run_folder(result, figures=True) == [f"metrics not computed: {message}",
                                                         f"figures not drawn: {message}"]
+
+
+def _offset_run(run_dir, peak_t, peak_yc):
+    """Driving along x at 10 m/s, offset yc(t) left of a planned path on y = 0 (a bump at peak_t)."""
+    t = np.arange(0, 401) * 0.01
+    yc = peak_yc * np.exp(-((t - peak_t) / 0.3) ** 2)
+    cols = {"vehicle.x": 10.0 * t, "vehicle.y": yc, "controller.yc": yc}
+    tw = t[::10]
+    px = 10.0 * tw[:, None] + 0.25 * np.arange(64)[None, :] - 2.0
+    arrays = {"planner.ref_x": (tw, px), "planner.ref_y": (tw, np.zeros_like(px))}
+    return write_run(run_dir, t, cols, {"name": "track_offset"}, arrays=arrays)
+
+
+def test_zoom_is_sized_from_the_largest_yc_and_shows_the_gap(tmp_path):
+    from cosim.figures_zoom import ZOOM_FACTOR
+
+    run = load_run(_offset_run(tmp_path / "r", 2.5, 0.02))
+    fig, _ = build_figure([run], "track")
+    ax = _axes_by_title(fig)["zoom on tracking (largest |yc|)"]
+    half = ZOOM_FACTOR * 0.02
+    np.testing.assert_allclose(ax.get_xlim(), (-half, half))
+    np.testing.assert_allclose(ax.get_ylim(), (-half, half))
+    lines = _lines(ax)
+    planned = lines["planned path (window at t = 2.50 s)"]   # the window recorded at the worst tick
+    np.testing.assert_allclose(planned.get_xdata(), 25.0 + 0.25 * np.arange(64) - 2.0 - 25.0)
+    np.testing.assert_allclose(planned.get_ydata(), -0.02)   # the path lies |yc| to the right
+    marker = lines["|yc| = 2.00 cm at t = 2.50 s"]
+    assert list(marker.get_xdata()) == [0.0] and list(marker.get_ydata()) == [0.0]
+    vehicle = lines["vehicle"]
+    inside = np.isfinite(vehicle.get_xdata())
+    assert inside.sum() > 0 and np.all(np.abs(vehicle.get_xdata()[inside]) <= 2 * half)
+    assert ax.get_xlabel() == "x - 25.00 (m)" and ax.get_ylabel() == "y - 0.02 (m)"
+
+
+def test_zoom_box_has_a_minimum_for_a_run_without_error(tmp_path):
+    from cosim.figures_zoom import ZOOM_MIN_HALF_WIDTH, zoom_half_width
+
+    assert zoom_half_width(0.0) == ZOOM_MIN_HALF_WIDTH == zoom_half_width(ZOOM_MIN_HALF_WIDTH / 5)
+    run = load_run(_offset_run(tmp_path / "r", 2.5, 0.0))
+    ax = _axes_by_title(build_figure([run], "track")[0])["zoom on tracking (largest |yc|)"]
+    np.testing.assert_allclose(ax.get_xlim(), (-ZOOM_MIN_HALF_WIDTH, ZOOM_MIN_HALF_WIDTH))
+
+
+def test_compare_zoom_goes_to_the_worst_point_over_all_runs(tmp_path):
+    from cosim.figures_zoom import worst_point
+
+    small = load_run(_offset_run(tmp_path / "small", 1.0, 0.01))
+    large = load_run(_offset_run(tmp_path / "large", 3.0, -0.03))
+    assert worst_point([small, large]) == (1, 300, 0.03)
+    assert worst_point([large, small]) == (0, 300, 0.03)
+    fig, _ = build_figure([small, large], "track")
+    ax = _axes_by_title(fig)["zoom on tracking (largest |yc|)"]
+    assert ax.get_xlabel() == "x - 30.00 (m)"             # large's worst tick, not small's
+    labels = set(_lines(ax))
+    assert {"small: vehicle", "large: vehicle", "|yc| = 3.00 cm at t = 3.00 s (large)"} <= labels
+
+
+def test_zoom_without_yc_says_so(tmp_path):
+    t = np.arange(3.0)
+    run = load_run(write_run(tmp_path / "r", t, {"vehicle.x": t, "vehicle.y": 0 * t}))
+    ax = _axes_by_title(build_figure([run], "track")[0])["zoom on tracking (largest |yc|)"]
+    assert [txt.get_text() for txt in ax.texts] == ["not recorded: yc, vehicle.x, vehicle.y"]
