@@ -1,8 +1,10 @@
 """Paper-style figures of a run (or several runs overlaid), saved as PNG.
 
 Two layouts, after the paper:
-- "track" (Fig. 4): nine panels, 3 x 3: x-y map with the planned path,
-  curvature rho, speed tracking vx vs vx_ref, yL, psiL, yc, zoom on tracking,
+- "track" (Fig. 4): nine panels, 3 x 3: x-y map with the planned path (and
+  the planner's road: lane edges, obstacles; cosim.figures_road),
+  curvature rho, speed tracking vx vs vx_ref, yL, psiL, yc, zoom on tracking
+  (a box sized from the largest |yc| of all runs; cosim.figures_zoom),
   mu_hat vs true mu, steering angle delta.
 - "manoeuvre" (Fig. 5/6): seven panels: the map across the top with the
   planner's recommended and alternative windows, then curvature, yL, psiL,

@@ -16,6 +16,7 @@ from matplotlib.axes import Axes
 from cosim import figures_signals as sig
 from cosim import figures_zoom as zoom
 from cosim.figures_envelope import envelope
+from cosim.figures_road import draw_road
 from cosim.metrics import run_cone_hits
 from cosim.metrics_rundata import RunData
 
@@ -128,7 +129,7 @@ def _cones(ax: Axes, run: RunData) -> None:
 
 def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False,
                    title: str = "trajectory (x-y map)", equal: bool = True) -> None:
-    """Vehicle CG path and planned path; with `both_windows`, planner windows too.
+    """Road (cosim.figures_road), vehicle CG path and planned path; planner windows too if asked.
 
     Args:
         ax: the axes to draw in.
@@ -137,6 +138,7 @@ def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False
         title: the panel title.
         equal: same scale on both axes (off for long straight manoeuvres).
     """
+    draw_road(ax, runs[0])
     drawn = False
     for i, run in enumerate(runs):
         path = sig.path_trace(run, "ref")

@@ -356,3 +356,54 @@ def test_zoom_without_yc_says_so(tmp_path):
     run = load_run(write_run(tmp_path / "r", t, {"vehicle.x": t, "vehicle.y": 0 * t}))
     ax = _axes_by_title(build_figure([run], "track")[0])["zoom on tracking (largest |yc|)"]
     assert [txt.get_text() for txt in ax.texts] == ["not recorded: yc, vehicle.x, vehicle.y"]
+
+
+def _road_run(run_dir, road, obstacles, name="obstacle_avoidance"):
+    t = np.arange(0, 101) * 0.01
+    cols = {"vehicle.x": 10.0 * t, "vehicle.y": 0 * t}
+    planner = {"python": "controllers.planner:Planner",
+               "parameters": {"road": road, "lane": 0, "speed": {"v_max": 10.0},
+                              "manoeuvre": {"type": "obstacle_avoidance", "obstacles": obstacles}}}
+    return load_run(write_run(run_dir, t, cols, {"name": name, "components": {"plan": planner}}))
+
+
+def test_map_draws_lane_edges_dividers_and_obstacles_of_a_straight_road(tmp_path):
+    obstacles = [{"s": 40.0, "lane": 0, "length": 4.0, "width": 2.0},
+                 {"s": 60.0, "lane": 1, "length": 5.0, "width": 1.5, "offset": 0.2}]
+    run = _road_run(tmp_path / "r", {"builder": "two_lane", "length": 100, "lane_width": 3.5}, obstacles)
+    road_ax = _axes_by_title(build_figure([run])[0])["road and planned trajectories"]
+    lines = road_ax.get_lines()
+    grey = [line for line in lines if line.get_color() == "gray"]
+    assert [np.unique(line.get_ydata()).tolist() for line in grey] == [[-1.75], [1.75], [5.25]]
+    assert [line.get_linestyle() for line in grey] == ["-", "--", "-"]
+    assert all(line.get_xdata()[0] == 0.0 and line.get_xdata()[-1] == 100.0 for line in grey)
+    boxes = [patch.get_xy() for patch in road_ax.patches]
+    assert len(boxes) == 2
+    for box, (x0, x1, y0, y1) in zip(boxes, [(40.0, 44.0, -1.0, 1.0), (60.0, 65.0, 2.95, 4.45)]):
+        np.testing.assert_allclose([box[:, 0].min(), box[:, 0].max()], [x0, x1], atol=1e-12)
+        np.testing.assert_allclose([box[:, 1].min(), box[:, 1].max()], [y0, y1], atol=1e-12)
+    labels = [text.get_text() for text in road_ax.get_legend().get_texts()]
+    assert labels[:3] == ["lane edge", "lane divider", "obstacle"]
+
+
+def test_obstacle_on_a_bend_follows_the_arc(tmp_path):
+    """Arc of radius 50 m to the left from the origin heading east: centre (0, 50)."""
+    road = {"reference": {"segments": [{"arc": {"radius": 50.0, "angle": 90.0}}]}, "lanes": 2,
+            "lane_width": 3.5}
+    run = _road_run(tmp_path / "r", road, [{"s": 30.0, "lane": 1, "length": 6.0, "width": 2.0}])
+    road_ax = _axes_by_title(build_figure([run])[0])["road and planned trajectories"]
+    (box,) = [patch.get_xy() for patch in road_ax.patches]
+    radius = np.hypot(box[:, 0], box[:, 1] - 50.0)            # distance to the bend's centre
+    assert radius.min() == pytest.approx(50.0 - 4.5) and radius.max() == pytest.approx(50.0 - 2.5)
+    angle = np.arctan2(box[:, 0], 50.0 - box[:, 1])           # arc angle s / R of each corner
+    np.testing.assert_allclose([angle.min(), angle.max()], [30.0 / 50.0, 36.0 / 50.0])
+    edges = [line for line in road_ax.get_lines() if line.get_color() == "gray"]
+    np.testing.assert_allclose(np.hypot(edges[0].get_xdata(), edges[0].get_ydata() - 50.0), 51.75)
+
+
+def test_a_road_that_cannot_be_rebuilt_is_a_note_in_the_map(tmp_path):
+    run = _road_run(tmp_path / "r", {"builder": "no_such_road"}, [])
+    road_ax = _axes_by_title(build_figure([run])[0])["road and planned trajectories"]
+    notes = [text.get_text() for text in road_ax.texts]
+    assert notes == ["road not drawn: components.plan.parameters.road.builder: unknown road "
+                     "'no_such_road' (known: satory_standin, two_lane)"]
