@@ -10,6 +10,8 @@ text of a component's exception, shared with the Zenoh runner.
 from __future__ import annotations
 
 import importlib
+import inspect
+import re
 from collections.abc import Mapping
 
 from cosim.component import Component, ComponentError, Port, Value, ports_by_name
@@ -47,6 +49,59 @@ def import_component_class(class_path: str, component: str) -> type[Component]:
     return cls
 
 
+class ParameterProblem(UserError):
+    """A component's constructor rejects one of its scenario parameters.
+
+    The master maps it to the parameter's YAML file, line and path
+    (`cosim.run.locate_parameter_problem`); its plain text names the component.
+
+    Args:
+        component: the component's scenario name.
+        parameter: the parameter's name.
+        problem: what is wrong with it.
+    """
+
+    def __init__(self, component: str, parameter: str, problem: str) -> None:
+        super().__init__(f"component {component!r}: parameters.{parameter}: {problem}")
+        self.component, self.parameter, self.problem = component, parameter, problem
+
+
+_LEADING_NAME = re.compile(r"[A-Za-z_]\w*")
+
+
+def check_parameter_names(cls: type, launch: PythonComponentLaunch) -> None:
+    """Reject a parameter that the class's constructor does not take.
+
+    Args:
+        cls: the component class.
+        launch: the component's launch (name and parameters).
+    Raises:
+        ParameterProblem for the first unknown parameter, with a spelling hint
+        and the known names.
+    """
+    try:
+        signature = inspect.signature(cls)
+    except (TypeError, ValueError):
+        return  # no signature to hold the names against: the constructor decides
+    params = signature.parameters.values()
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
+        return
+    known = [p.name for p in params
+             if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)]
+    for name in launch.parameters:
+        if name not in known:
+            raise ParameterProblem(launch.name, name, f"unknown parameter {name!r}"
+                                   f"{did_you_mean(name, known)}; known: {', '.join(known)}")
+
+
+def _problem_of(launch: PythonComponentLaunch, exc: Exception) -> ParameterProblem | None:
+    """The parameter a constructor's error message starts with ("ke[0] must be > 0"), if any."""
+    match = _LEADING_NAME.match(str(exc))
+    if match is None or match.group() not in launch.parameters:
+        return None
+    return ParameterProblem(launch.name, match.group(), describe_exception(exc))
+
+
 def construct_component(launch: PythonComponentLaunch) -> Component:
     """Import and construct the component of `launch`, checking its ports.
 
@@ -57,11 +112,18 @@ def construct_component(launch: PythonComponentLaunch) -> Component:
         parameters or declares invalid ports.
     """
     cls = import_component_class(launch.class_path, launch.name)
+    check_parameter_names(cls, launch)
     try:
         instance = cls(**dict(launch.parameters))
         ports_by_name(tuple(instance.inputs))
         ports_by_name(tuple(instance.outputs))
-    except ComponentError as exc:
+    except (ComponentError, ValueError) as exc:
+        problem = _problem_of(launch, exc)
+        if problem is not None:
+            raise problem from exc
+        if not isinstance(exc, ComponentError):
+            raise UserError(f"component {launch.name!r}: constructor failed: "
+                            f"{describe_exception(exc)}") from exc
         raise UserError(f"component {launch.name!r}: {exc}") from exc
     except TypeError as exc:
         raise UserError(f"component {launch.name!r}: bad parameters for "

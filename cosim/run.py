@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 from cosim.errors import UserError
 from cosim.launch import PythonComponentLaunch
-from cosim.run_abort import start_failure_text, write_start_failure
+from cosim.run_abort import locate_parameter_problem, start_failure_text, write_start_failure
 from cosim.startup import StartupClock
 
 if TYPE_CHECKING:  # loaded when needed: the Zenoh processes start before numpy/fmpy load
@@ -247,8 +247,11 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             return _execute(prepared, hosted, remote, out, transport, run_id, realtime,
                             progress, clock)
         except BaseException as exc:  # the announced folder says why the run never started
-            write_start_failure(out, scenario, run_id, transport, start_failure_text(exc),
-                                clock.as_dict())
+            located = locate_parameter_problem(scenario, exc)
+            write_start_failure(out, scenario, run_id, transport,
+                                start_failure_text(located or exc), clock.as_dict())
+            if located is not None:
+                raise located from None
             raise
 
 
@@ -477,43 +480,12 @@ def _failure_text(exc: BaseException) -> str:
 
 
 def validate_scenario(scenario: Any) -> dict[str, Any]:
-    """Check a scenario as far as possible without running it.
-
-    Resolves and describes the FMUs, checks parameters, constructs the Python
-    components in this process to read their ports, resolves the wiring and
-    derives the step order (an algebraic loop is an error).
+    """Check a scenario as far as possible without running it (see
+    `cosim.run_validate.validate_scenario`).
 
     Args:
         scenario: a validated `cosim.scenario.Scenario`.
-    Returns:
-        {"components": name -> (inputs, outputs), "edges": [...], "order": [...]}.
-    Raises:
-        UserError describing the first class of problems found.
     """
-    from cosim.inproc import construct_component
-    from cosim.schedule import step_order
-    from cosim.signals import build_layout
-    from cosim.wiring import resolve_wiring
+    from cosim.run_validate import validate_scenario as validate
 
-    prepared = prepare_run(scenario)
-    ports: dict[str, tuple[Any, Any]] = {}
-    feedthrough: dict[str, bool] = {}
-    for plan in prepared.fmus:
-        ports[plan.name] = (plan.interface.inputs, plan.interface.outputs)
-        feedthrough[plan.name] = False
-    for launch in prepared.launches:
-        comp = construct_component(launch)
-        ports[launch.name] = (tuple(comp.inputs), tuple(comp.outputs))
-        feedthrough[launch.name] = True
-    ports = {name: ports[name] for name in prepared.names}
-    edges = resolve_wiring(scenario, ports,
-                           {plan.name: plan.interface.unsupported for plan in prepared.fmus})
-    build_layout({n: _Ports(*p) for n, p in ports.items()}, edges)
-    order = step_order(prepared.names, feedthrough, edges)
-    return {"components": ports, "edges": edges, "order": order}
-
-
-@dataclass
-class _Ports:
-    inputs: Any
-    outputs: Any
+    return validate(scenario)

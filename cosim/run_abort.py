@@ -3,8 +3,9 @@
 Once `cosim run` has announced a run folder, the folder must say what became of
 the run even when it never reached tick 0 (a component that rejects its
 parameters, a wiring typo, Ctrl-C during start-up): `write_start_failure`
-leaves a readable manifest.json with status "failed" and the error, and removes
-a half-written manifest.json.tmp.
+leaves a readable manifest.json with status "failed" and the error, and replaces
+a half-written manifest.json.tmp. `locate_parameter_problem` gives a parameter
+that a component's constructor rejected its YAML file, line and path.
 """
 
 from __future__ import annotations
@@ -74,3 +75,22 @@ def _final_status(manifest_path: Path) -> str | None:
     except (OSError, ValueError, AttributeError):
         return None
     return None if status == "running" else status
+
+
+def locate_parameter_problem(scenario: Any, exc: BaseException) -> UserError | None:
+    """A component's rejected parameter (cosim.inproc.ParameterProblem) as a
+    UserError starting with the parameter's YAML file, line and path; None for
+    any other exception.
+
+    Args:
+        scenario: the scenario being run.
+        exc: what starting the components raised.
+    """
+    component, parameter = getattr(exc, "component", None), getattr(exc, "parameter", None)
+    if not isinstance(exc, UserError) or parameter is None:
+        return None
+    spec = scenario.components.get(component)
+    if spec is None or parameter not in (getattr(spec, "parameters", None) or {}):
+        return None
+    return UserError(f"{scenario.where(('components', component, 'parameters', parameter))}: "
+                     f"{exc.problem}")  # type: ignore[attr-defined]

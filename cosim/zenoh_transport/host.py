@@ -254,7 +254,7 @@ class ZenohComponents:
                 data = sample.payload.to_bytes()
                 kind = HEADER.unpack_from(data)[0]
                 if kind == Kind.ERROR:
-                    raise UserError(decode_json(data)["cause"])
+                    raise _build_error(name, decode_json(data))
                 if kind == Kind.PORTS:
                     document = decode_json(data)
                     ready[name] = RemoteComponent(
@@ -370,3 +370,13 @@ class ZenohComponents:
         """
         if self._live is not None:
             self._live.publish(tick, t, names, values)
+
+
+def _build_error(component: str, document: dict[str, Any]) -> UserError:
+    """The UserError of a component process that could not build its component
+    (a ParameterProblem when it names the rejected parameter)."""
+    if "parameter" in document and "problem" in document:
+        from cosim.inproc import ParameterProblem
+
+        return ParameterProblem(component, str(document["parameter"]), str(document["problem"]))
+    return UserError(document["cause"])

@@ -32,7 +32,8 @@ import zenoh
 
 from cosim.component import Component
 from cosim.errors import UserError
-from cosim.inproc import PythonComponentLaunch, construct_component, describe_exception
+from cosim.inproc import (ParameterProblem, PythonComponentLaunch, construct_component,
+                          describe_exception)
 from cosim.startup import process_age_s
 from cosim.zenoh_transport import config
 from cosim.zenoh_transport.codec import (CodecError, Kind, Layout, HEADER,
@@ -77,8 +78,12 @@ class _Server:
         self.ages = ages  # start-up marks: seconds since this process started
         self.component: Component | None = None
         self.build_error = ""
+        self.build_detail: dict[str, str] = {}  # the parameter a constructor rejected, if known
         try:
             self.component = construct_component(launch)
+        except ParameterProblem as exc:
+            self.build_error = str(exc)
+            self.build_detail = {"parameter": exc.parameter, "problem": exc.problem}
         except UserError as exc:
             self.build_error = str(exc)
         except Exception as exc:  # user code in __init__: report, do not crash
@@ -117,7 +122,8 @@ class _Server:
 
     def _hello(self, seq: int) -> bytes:
         if self.component is None:
-            return encode_json(Kind.ERROR, seq, -1, 0.0, {"cause": self.build_error, "build": True})
+            return encode_json(Kind.ERROR, seq, -1, 0.0, {"cause": self.build_error, "build": True,
+                                                     **self.build_detail})
         return encode_json(Kind.PORTS, seq, -1, 0.0, {
             "inputs": ports_to_json(self.component.inputs),
             "outputs": ports_to_json(self.component.outputs), "pid": os.getpid(),
