@@ -59,13 +59,9 @@ def default_run_dir(name: str, now: datetime.datetime | None = None) -> Path:
         name: the scenario's name.
         now: the time to stamp (default: now, UTC).
     """
-    now = now or datetime.datetime.now(datetime.timezone.utc)
-    base = Path("runs") / f"{name}-{now.strftime('%Y%m%dT%H%M%SZ')}"
-    candidate, n = base, 1
-    while candidate.exists():
-        n += 1
-        candidate = base.with_name(f"{base.name}-{n}")
-    return candidate
+    from cosim.cli_analysis import stamped_folder
+
+    return stamped_folder("runs", name, now)
 
 
 @app.command()

@@ -3,9 +3,13 @@
 `register(app)` adds them to the main typer app (cosim/cli.py):
 
     cosim plot RUN_DIR [--layout track|manoeuvre]
-    cosim compare RUN_DIR RUN_DIR ... [--out DIR]
+    cosim compare RUN_DIR [RUN_DIR ...] [--out DIR]
     cosim sweep SCENARIO --vary PATH=LOW:HIGH ... --samples N [--seed S] [--set PATH=VALUE ...]
                 [--scheduler ADDRESS] [--out DIR] [--transport inproc|zenoh] [--method lhs|uniform]
+
+Their default outputs go to comparisons/ and sweeps/, not runs/, so that
+`cosim compare runs/*` sees only run folders; compare skips, with a note, an
+argument that is a compare or sweep output folder.
 
 A user error (missing run folder, bad --vary, unreachable scheduler) prints
 one line on stderr and exits with status 2, without a traceback.
@@ -13,6 +17,7 @@ one line on stderr and exits with status 2, without a traceback.
 
 from __future__ import annotations
 
+import datetime
 from pathlib import Path
 from typing import Optional
 
@@ -40,17 +45,64 @@ def plot(run_dir: Path = typer.Argument(..., help="run folder"),
         typer.echo(f"figure: {path}")
 
 
-def compare(run_dirs: list[Path] = typer.Argument(..., help="two or more run folders"),
-            out: Optional[Path] = typer.Option(None, "--out",
-                                               help="output folder (default: <first run's parent>/compare)"),
+COMPARE_OUTPUTS = "comparisons"  # default parent of `cosim compare` outputs
+SWEEP_OUTPUTS = "sweeps"  # default parent of `cosim sweep` outputs
+# files that mark a folder as a compare or a sweep output, not a run folder
+_OUTPUT_MARKERS = {"compare_metrics.csv": "a cosim compare output", "sweep.json": "a cosim sweep output"}
+
+
+def stamped_folder(parent: str | Path, name: str,
+                   now: datetime.datetime | None = None) -> Path:
+    """A fresh folder parent/<name>-<UTC timestamp> (a suffix -2, -3... when it exists).
+
+    Args:
+        parent: the folder to create it in (e.g. "runs", "comparisons").
+        name: the leading part of the folder's name.
+        now: the time to stamp (default: now, UTC).
+    """
+    now = now or datetime.datetime.now(datetime.timezone.utc)
+    base = Path(parent) / f"{name}-{now.strftime('%Y%m%dT%H%M%SZ')}"
+    candidate, n = base, 1
+    while candidate.exists():
+        n += 1
+        candidate = base.with_name(f"{base.name}-{n}")
+    return candidate
+
+
+def output_folder_kind(folder: Path) -> str | None:
+    """"a cosim compare output" / "a cosim sweep output" for such a folder, else None.
+
+    Args:
+        folder: a folder given to `cosim compare`.
+    """
+    for marker, kind in _OUTPUT_MARKERS.items():
+        if (Path(folder) / marker).is_file():
+            return kind
+    return None
+
+
+def compare(run_dirs: list[Path] = typer.Argument(
+                ..., help="one or more run folders (compare and sweep outputs are skipped)"),
+            out: Optional[Path] = typer.Option(
+                None, "--out", help="output folder (default: comparisons/compare-<UTC time>)"),
             layout: Optional[str] = typer.Option(None, "--layout", help="track | manoeuvre")
             ) -> None:
-    """Overlay several runs' figures and tabulate their metrics side by side."""
+    """Overlay one or more runs' figures and tabulate their metrics side by side."""
     from cosim.compare import compare_runs
 
-    out_dir = out if out is not None else Path(run_dirs[0]).resolve().parent / "compare"
+    runs = []
+    for folder in run_dirs:
+        kind = output_folder_kind(folder)
+        if kind is None:
+            runs.append(folder)
+        else:
+            typer.echo(f"skipped {folder}: {kind}, not a run folder", err=True)
+    if not runs:
+        raise _fail(UserError("compare: no run folder among the arguments "
+                              f"({', '.join(str(d) for d in run_dirs)})"))
+    out_dir = out if out is not None else stamped_folder(COMPARE_OUTPUTS, "compare")
     try:
-        paths = compare_runs(run_dirs, out_dir, layout)
+        paths = compare_runs(runs, out_dir, layout)
     except UserError as exc:
         raise _fail(exc) from None
     typer.echo(paths[2].read_text(), nl=False)
@@ -84,13 +136,15 @@ def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
           scheduler: Optional[str] = typer.Option(None, "--scheduler",
                                                   help="Dask scheduler address (default: a local cluster)"),
           out: Optional[Path] = typer.Option(None, "--out",
-                                             help="output folder (default: runs/sweep-<name>-s<seed>-n<samples>)"),
+                                             help="output folder (default: "
+                                                  "sweeps/<name>-s<seed>-n<samples>-<UTC time>)"),
           transport: str = typer.Option("inproc", "--transport", help="inproc | zenoh, for each run"),
           method: str = typer.Option("lhs", "--method", help="lhs | uniform")) -> None:
     """Monte-Carlo runs of a scenario on Dask; the distribution of every metric."""
     from cosim.sweep import run_sweep
 
-    out_dir = out if out is not None else Path("runs") / f"sweep-{scenario.stem}-s{seed}-n{samples}"
+    out_dir = out if out is not None else stamped_folder(
+        SWEEP_OUTPUTS, f"{scenario.stem}-s{seed}-n{samples}")
     try:
         result = run_sweep(scenario, vary, samples, seed=seed, scheduler=scheduler,
                            out_dir=out_dir, transport=transport, method=method,

@@ -80,7 +80,7 @@ def compare_runs(run_dirs: Sequence[str | Path], out_dir: str | Path,
     """Overlay several runs and tabulate their metrics.
 
     Args:
-        run_dirs: two or more run folders (one is accepted too).
+        run_dirs: one or more run folders.
         out_dir: folder for the outputs (created if missing).
         layout: "track", "manoeuvre" or None to choose from the first run.
 
