@@ -72,9 +72,18 @@ def planned_window_at(run: RunData, t: float) -> sig.Series | None:
 
 
 def _near(x: np.ndarray, y: np.ndarray, cx: float, cy: float, half: float) -> sig.Series:
-    """The samples within twice the box around (cx, cy), relative to it; NaN elsewhere."""
+    """The samples within twice the box around (cx, cy), relative to it.
+
+    Only the stretch from the first to the last such sample is kept (the
+    renderer need not clip a whole lap), with NaN gaps where the path leaves.
+    """
     near = (np.abs(x - cx) <= 2 * half) & (np.abs(y - cy) <= 2 * half)
-    return np.where(near, x - cx, np.nan), np.where(near, y - cy, np.nan)
+    inside = np.flatnonzero(near)
+    if len(inside) == 0:
+        return np.empty(0), np.empty(0)
+    cut = slice(inside[0], inside[-1] + 1)
+    keep = near[cut]
+    return np.where(keep, x[cut] - cx, np.nan), np.where(keep, y[cut] - cy, np.nan)
 
 
 def zoom_map(ax: Axes, runs: Sequence[RunData], colors: Sequence[str], labels: Sequence[str]) -> None:

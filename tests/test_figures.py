@@ -325,6 +325,7 @@ def test_zoom_is_sized_from_the_largest_yc_and_shows_the_gap(tmp_path):
     vehicle = lines["vehicle"]
     inside = np.isfinite(vehicle.get_xdata())
     assert inside.sum() > 0 and np.all(np.abs(vehicle.get_xdata()[inside]) <= 2 * half)
+    assert inside[0] and inside[-1] and len(inside) < 401     # only the stretch near the box
     assert ax.get_xlabel() == "x - 25.00 (m)" and ax.get_ylabel() == "y - 0.02 (m)"
 
 
