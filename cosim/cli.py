@@ -104,6 +104,10 @@ def run(
         raise user_error_exit(error) from None
     except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
         raise _interrupted_exit() from None
+    except Exception as exc:
+        if not isinstance(exc.__context__, KeyboardInterrupt):
+            raise
+        raise _interrupted_exit(f"{type(exc).__name__}: {exc}") from None  # while stopping
     finally:
         if early is not None:
             early.close()
@@ -116,12 +120,17 @@ def _restore_interrupts() -> None:
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
-def _interrupted_exit() -> typer.Exit:
-    """Say the run was interrupted before tick 0; the exit of a failed run (status 1)."""
+def _interrupted_exit(stop_error: str | None = None) -> typer.Exit:
+    """Say the run was interrupted before tick 0; the exit of a failed run (status 1).
+
+    Args:
+        stop_error: an error raised while the interrupted start-up was undone.
+    """
     from cosim.run_abort import INTERRUPTED_BEFORE_TICK0
 
+    note = f" (then, while stopping: {stop_error})" if stop_error else ""
     Console(stderr=True, highlight=False, soft_wrap=True).print(
-        f"[red]run failed:[/red] {INTERRUPTED_BEFORE_TICK0}", markup=True)
+        f"[red]run failed:[/red] {INTERRUPTED_BEFORE_TICK0}{escape(note)}", markup=True)
     return typer.Exit(EXIT_FAILED_RUN)
 
 

@@ -75,7 +75,7 @@ def test_ctrl_c_at_start_exits_1_with_one_line_and_a_failed_manifest(tmp_path, d
     out = tmp_path / "run"
     done, left = _interrupt_run(out, delay_s)
     assert done.returncode == 1, done.stderr
-    assert "Traceback" not in done.stderr
+    assert "Traceback" not in done.stderr, done.stderr
     last = done.stderr.strip().splitlines()[-1]
     assert last.startswith("run failed: interrupted"), done.stderr
     assert left == []
@@ -88,3 +88,37 @@ def test_ctrl_c_at_start_exits_1_with_one_line_and_a_failed_manifest(tmp_path, d
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["status"] == "failed" and manifest["error"].startswith("interrupted")
     assert last == f"run failed: {manifest['error']}"
+
+
+def _interrupted_run(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+def _interrupted_then_cleanup_fails(*args, **kwargs):
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt:
+        raise RuntimeError("cannot stop the writer process") from None
+
+
+@pytest.mark.parametrize("load_and_run, note", [
+    (_interrupted_run, ""),
+    (_interrupted_then_cleanup_fails,
+     " (then, while stopping: RuntimeError: cannot stop the writer process)")])
+def test_interrupt_before_tick0_is_one_line_exit_1(monkeypatch, capsys, load_and_run, note):
+    import cosim.cli
+
+    monkeypatch.setattr(cosim.cli, "_load_and_run", load_and_run)
+    assert main(["run", str(LANE_CHANGE), "--transport", "inproc"]) == 1
+    assert capsys.readouterr().err == f"run failed: interrupted before tick 0{note}\n"
+
+
+def test_a_bug_outside_an_interrupt_is_not_hidden(monkeypatch):
+    import cosim.cli
+
+    def buggy(*args, **kwargs):
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(cosim.cli, "_load_and_run", buggy)
+    with pytest.raises(RuntimeError, match="a bug"):
+        main(["run", str(LANE_CHANGE), "--transport", "inproc"])
