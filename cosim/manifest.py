@@ -38,6 +38,29 @@ def package_versions() -> dict[str, str | None]:
     return versions
 
 
+def run_identity(scenario: Any, run_id: str, transport: str, status: str,
+                 error: str | None, time_key: str) -> dict[str, Any]:
+    """The manifest fields that say which run this is, shared by every manifest a run writes.
+
+    Args:
+        scenario: the scenario as run (overrides applied).
+        run_id: the run's id (Zenoh key scope).
+        transport: "inproc" or "zenoh".
+        status / error: the run's status ("running", "failed", ...) and error text.
+        time_key: name of the UTC timestamp field ("started_utc", "failed_utc").
+    """
+    return {
+        "name": scenario.name,
+        "run_id": run_id,
+        "status": status,
+        "error": error,
+        time_key: datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "scenario_file": str(scenario.source_file) if scenario.source_file else None,
+        "scenario": scenario.model_dump(mode="json", by_alias=True),
+        "transport": transport,
+    }
+
+
 def base_manifest(scenario: Any, prepared: Any, hosted: dict[str, Any], transport: str,
                   run_id: str, order: list[str]) -> dict[str, Any]:
     """The manifest before tick 0.
@@ -53,14 +76,7 @@ def base_manifest(scenario: Any, prepared: Any, hosted: dict[str, Any], transpor
     host = socket.gethostname()
     placement = dict(getattr(prepared, "placement", None) or {})  # component -> worker
     return {
-        "name": scenario.name,
-        "run_id": run_id,
-        "status": "running",
-        "error": None,
-        "started_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "scenario_file": str(scenario.source_file) if scenario.source_file else None,
-        "scenario": scenario.model_dump(mode="json", by_alias=True),
-        "transport": transport,
+        **run_identity(scenario, run_id, transport, "running", None, "started_utc"),
         "step_order": list(order),
         "periods_ticks": {n: int(c.period_ticks) for n, c in hosted.items()},
         "fmus": {plan.name: _fmu_entry(plan) for plan in prepared.fmus},

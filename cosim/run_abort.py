@@ -10,7 +10,6 @@ that a component's constructor rejected its YAML file, line and path.
 
 from __future__ import annotations
 
-import datetime
 from pathlib import Path
 from typing import Any
 
@@ -45,20 +44,14 @@ def write_start_failure(out: Path, scenario: Any, run_id: str, transport: str,
         error: the error text (see start_failure_text).
         startup: the start-up clock's marks (StartupClock.as_dict()).
     """
+    from cosim.manifest import run_identity
     from cosim.recorder import write_json
 
     manifest_path = out / "manifest.json"
     if _final_status(manifest_path) is not None:
         return
     write_json(manifest_path, {
-        "name": scenario.name,
-        "run_id": run_id,
-        "status": "failed",
-        "error": error,
-        "failed_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "scenario_file": str(scenario.source_file) if scenario.source_file else None,
-        "scenario": scenario.model_dump(mode="json", by_alias=True),
-        "transport": transport,
+        **run_identity(scenario, run_id, transport, "failed", error, "failed_utc"),
         "ticks": 0,
         "sim_time_s": 0.0,
         "time_to_tick0_s": None,
