@@ -11,6 +11,9 @@ component starts it checks that every named worker answers, and fails naming
 the missing ones and the reachable ones. A `WorkerChild` stands for a remote
 process where the transport expects a local one: its exit code comes from the
 worker's exit notice, and a failure mid-run names the worker and its host.
+A placed component's process is the ordinary runner, so a parameter its
+constructor rejects comes back in its handshake as a `ParameterProblem`,
+which the master maps to the YAML line as for a local process.
 `list_workers` is what `cosim workers` prints.
 """
 

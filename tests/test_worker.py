@@ -265,6 +265,76 @@ def test_cli_run_with_place_matches_inproc_and_workers_lists(worker, tmp_path, c
         in capsys.readouterr().err
 
 
+PARAMETERS = """\
+name: params
+duration: 0.1
+tick: 0.01
+components:
+  controller:
+    python: controllers.backstepping:BacksteppingController
+    host: w1
+    parameters:
+      kx: 1.0
+      {bad}
+"""
+
+
+def _record_starts(worker, monkeypatch) -> list[str]:
+    """Components the worker is asked to start (proves the run went through it)."""
+    started: list[str] = []
+    start = worker.worker._start
+
+    def recording(request):
+        started.append(request["component"])
+        return start(request)
+
+    monkeypatch.setattr(worker.worker, "_start", recording)
+    return started
+
+
+@pytest.mark.parametrize("bad, located", [
+    ("kee: 2.0", "components.controller.parameters.kee: unknown parameter 'kee' (did you mean "
+                 "'ke'?); known: {known}"),
+    ("ke: .nan", "components.controller.parameters.ke: ke[0] must be > 0, got nan"),
+], ids=["unknown", "bad-value"])
+def test_parameter_rejected_on_worker_names_its_yaml_line(worker, tmp_path, capsys,
+                                                          monkeypatch, bad, located):
+    import inspect
+    import json
+
+    from controllers.backstepping import BacksteppingController
+
+    worker.worker.allow = ("controllers.",)
+    started = _record_starts(worker, monkeypatch)
+    path = tmp_path / "params.yaml"
+    path.write_text(PARAMETERS.format(bad=bad))
+    known = ", ".join(inspect.signature(BacksteppingController).parameters)
+    expected = f"{path}:10: " + located.format(known=known)
+    out = tmp_path / "run"
+    assert main(["run", str(path), "--listen", "tcp/127.0.0.1:0", "--connect", worker.endpoint,
+                 "--out", str(out), "--no-figures"]) == 2
+    assert capsys.readouterr().err == f"error: {expected}\n"  # as in-process and local Zenoh
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert (manifest["status"], manifest["error"]) == ("failed", expected)
+    assert started == ["controller"]
+
+
+def test_parameter_rejected_on_worker_raises_parameter_problem(worker, monkeypatch):
+    from cosim.inproc import ParameterProblem
+
+    started = _record_starts(worker, monkeypatch)
+    run_id = f"t-w-param-{os.getpid()}"
+    with pytest.raises(ParameterProblem) as error:
+        with DistributedComponents([launch("bad", "BadParameter", mass=-2.0)], run_id, 2.0,
+                                   placement={"bad": "w1"}, settings=settings_for(worker.endpoint)):
+            pass
+    assert (error.value.component, error.value.parameter, error.value.problem) == \
+        ("bad", "mass", "mass must be positive, got -2.0")
+    assert str(error.value) == "component 'bad': parameters.mass: mass must be positive, got -2.0"
+    assert started == ["bad"]
+    assert run_processes(run_id) == []
+
+
 # ------------------------------------------------------------------ TLS
 @pytest.fixture(scope="module")
 def certs(tmp_path_factory):
