@@ -73,22 +73,39 @@ class LateralPlan:
         sum of every transition's change times its quintic shape, clamped to
         0 before and 1 after it.
         """
-        s = np.asarray(s, dtype=float)
-        d = np.full(s.shape, float(self.d_start))
-        d1, d2 = np.zeros(s.shape), np.zeros(s.shape)
-        for tr in self.transitions:
-            t = np.clip((s - tr.s0) * (1.0 / tr.length), 0.0, 1.0)
-            tt = t * t
-            omt = 1.0 - t
-            big = tr.d1 - tr.d0
-            d += big * tt * t * (10.0 + t * (6.0 * t - 15.0))
-            d1 += (30.0 * big / tr.length) * tt * omt * omt
-            d2 += (60.0 * big / tr.length ** 2) * t * omt * (1.0 - 2.0 * t)
-        return d, d1, d2
+        return offset_profile(self.d_start, self.transitions, s)
 
     def active(self, s: float) -> bool:
         """True while s lies inside a transition."""
         return any(tr.s0 <= s < tr.s1 for tr in self.transitions)
+
+
+def offset_profile(d_start: float, transitions: Sequence[Transition], s) -> tuple[np.ndarray, ...]:
+    """(d, dd/ds, d2d/ds2) at stations s of d_start followed by chained transitions.
+
+    LateralPlan.evaluate without building (and checking) a plan, for the
+    planner's per-step lane change.
+
+    Args:
+        d_start: offset before the first transition, m.
+        transitions: sorted, chained, non-overlapping (as LateralPlan checks).
+        s: reference arc lengths (array-like), m.
+    """
+    s = np.asarray(s, dtype=float)
+    d = np.empty(s.shape)
+    d[...] = float(d_start)
+    d1, d2 = np.zeros(s.shape), np.zeros(s.shape)
+    for tr in transitions:
+        t = (s - tr.s0) * (1.0 / tr.length)
+        np.maximum(t, 0.0, out=t)      # clip to [0, 1]: np.clip costs more than both at this size
+        np.minimum(t, 1.0, out=t)
+        tt = t * t
+        omt = 1.0 - t
+        big = tr.d1 - tr.d0
+        d += big * tt * t * (10.0 + t * (6.0 * t - 15.0))
+        d1 += (30.0 * big / tr.length) * tt * omt * omt
+        d2 += (60.0 * big / tr.length ** 2) * t * omt * (1.0 - 2.0 * t)
+    return d, d1, d2
 
 
 @dataclass(frozen=True)

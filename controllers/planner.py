@@ -46,8 +46,8 @@ import numpy as np
 
 from cosim.component import Component, ComponentError, Port, Value
 from controllers.geometry import SpecError, spec_number
-from controllers.manoeuvres import (LateralPlan, ManoeuvrePlan, Option, Transition, plan_manoeuvre,
-                                   transition_length)
+from controllers.manoeuvres import (LateralPlan, ManoeuvrePlan, Option, Transition, offset_profile,
+                                   plan_manoeuvre, transition_length)
 from controllers.road import Road, frenet_from_base, road_from_spec
 from controllers.speed_profile import SpeedLimits, plan_speed
 from controllers.trajectory import FIELDS, WINDOW_POINTS, window_ports
@@ -68,6 +68,7 @@ class RouteGrid:
         self.s = s_first + ROUTE_DS * np.arange(n)
         x, y, psi, k = road.reference.evaluate(self.s)
         self.base = (x, y, np.unwrap(psi), k, road.reference.dkappa(self.s))
+        self.trig = (np.sin(self.base[2]), np.cos(self.base[2]))
 
     def index(self, s: float) -> int:
         """Index of the last grid point at or before s."""
@@ -75,9 +76,20 @@ class RouteGrid:
 
     def trajectory(self, lateral: LateralPlan, sl: slice = slice(None)):
         """x, y, psi, kappa and own arc length (from the slice start) of a lateral plan."""
-        s = self.s[sl]
-        x, y, psi, kappa, g = frenet_from_base(tuple(b[sl] for b in self.base), *lateral.evaluate(s), s)
-        sigma = np.concatenate([[0.0], np.cumsum(0.5 * ROUTE_DS * (g[1:] + g[:-1]))])
+        return self.layout(lateral.evaluate(self.s[sl]), sl)
+
+    def layout(self, profile: tuple[np.ndarray, np.ndarray, np.ndarray], sl: slice):
+        """x, y, psi, kappa and own arc length (from the slice start) of an offset profile.
+
+        Args:
+            profile: (d, dd/ds, d2d/ds2) at the grid points sl.
+            sl: a contiguous slice of the grid.
+        """
+        x, y, psi, kappa, g = frenet_from_base(tuple(b[sl] for b in self.base), *profile, self.s[sl],
+                                               trig=(self.trig[0][sl], self.trig[1][sl]))
+        sigma = np.empty(g.size)
+        sigma[0] = 0.0
+        np.cumsum(0.5 * ROUTE_DS * (g[1:] + g[:-1]), out=sigma[1:])
         return x, y, psi, kappa, sigma
 
 
@@ -290,14 +302,19 @@ class Planner(Component):
                                  f"route [{self.grid.s[0]:.2f}, {self.grid.s[-1]:.2f}] m")
         return slice(first, last + 1, self.step_pts)
 
-    def _dynamic_alt(self, idx: slice, vx: float, psi_shift: float) -> dict[str, np.ndarray]:
-        """Window of the lane change to plan.alt_lane starting at the vehicle's progress."""
-        d_now = float(np.interp(self.progress, self.grid.s, self.ref_route.d))
+    def _dynamic_alt(self, idx: slice, vx: float, psi_shift: float, d_now: float) -> dict[str, np.ndarray]:
+        """Window of the lane change to plan.alt_lane starting at the vehicle's progress.
+
+        Args:
+            idx: the window's grid points; vx: vehicle speed, m/s.
+            psi_shift: heading shift (2 pi k); d_now: recommended offset at the vehicle, m.
+        """
         d_to = self.road.lane_offset(self.plan.alt_lane)
         speed = min(max(vx, 3.0), self.limits.v_max)
         length = transition_length(d_to - d_now, speed, self.plan.comfort)
-        lateral = LateralPlan(d_now, (Transition(self.progress, length, d_now, d_to),))
-        x, y, psi, kappa, sigma = self.grid.trajectory(lateral, slice(idx.start, idx.stop))
+        sl = slice(idx.start, idx.stop)
+        profile = offset_profile(d_now, (Transition(self.progress, length, d_now, d_to),), self.grid.s[sl])
+        x, y, psi, kappa, sigma = self.grid.layout(profile, sl)
         sub = slice(None, None, idx.step)
         return window_signals("alt", x[sub], y[sub], psi[sub] + psi_shift, kappa[sub], sigma[sub],
                               self.ref_route.v[idx], self.ref_route.a[idx])
@@ -306,11 +323,12 @@ class Planner(Component):
         """Both windows and the scalar outputs at the current progress."""
         idx = self._indices(t)
         shift = 2 * np.pi * round((psi - self.ref_route.psi[idx.start]) / (2 * np.pi))
+        d_now = float(np.interp(self.progress, self.grid.s, self.ref_route.d))
         out: dict[str, Value] = self.ref_route.window(idx, shift, "ref")
-        out.update(self._dynamic_alt(idx, vx, shift) if self.alt_route is None
+        out.update(self._dynamic_alt(idx, vx, shift, d_now) if self.alt_route is None
                    else self.alt_route.window(idx, shift, "alt"))
         out["s_vehicle"] = float(self.progress)
-        out["lateral_offset"] = float(self.offset - np.interp(self.progress, self.grid.s, self.ref_route.d))
+        out["lateral_offset"] = float(self.offset - d_now)
         out["v_ref"] = float(np.interp(self.progress, self.grid.s, self.ref_route.v))
         out["manoeuvre_state"] = self._update_state(vx)
         if self.holding:      # stopped: the reference is rest, exactly, wherever the car stands

@@ -91,26 +91,29 @@ def frenet_to_world(path: Path, s, d, dd, ddd):
     return frenet_from_base((x0, y0, psi0, k, path.dkappa(s)), d, dd, ddd, s)
 
 
-def frenet_from_base(base, d, dd, ddd, s=None):
+def frenet_from_base(base, d, dd, ddd, s=None, trig=None):
     """`frenet_to_world` on reference samples already evaluated.
 
     Args:
         base: (x, y, psi, kappa, dkappa/ds) of the reference line at the stations.
         d, dd, ddd: lateral offset and its first two derivatives in s there.
         s: the stations (only for error messages).
+        trig: (sin psi, cos psi) of the reference there if known (saves their
+            evaluation at every planner step; the same values bit for bit).
     """
     x0, y0, psi0, k, dk = base
     d, dd, ddd = (np.asarray(a, dtype=float) for a in (d, dd, ddd))
     a = 1.0 - k * d
-    if np.any(a <= 0.0):
+    if (a <= 0.0).any():
         bad = int(np.argmax(a <= 0.0))
         where = f" at s = {s[bad]:.3f} m" if s is not None else ""
         raise SpecError(f"lateral offset {d[bad]:.3f} m{where} crosses the road's "
                         f"centre of curvature (radius {1.0 / k[bad]:.3f} m)")
     a1 = -(dk * d + k * dd)
     g = np.hypot(a, dd)
-    x = x0 - d * np.sin(psi0)
-    y = y0 + d * np.cos(psi0)
+    sin_psi, cos_psi = (np.sin(psi0), np.cos(psi0)) if trig is None else trig
+    x = x0 - d * sin_psi
+    y = y0 + d * cos_psi
     psi = psi0 + np.arctan2(dd, a)
     kappa = (a * (a * k + ddd) - dd * (a1 - dd * k)) / g ** 3
     return x, y, psi, kappa, g
