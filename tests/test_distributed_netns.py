@@ -57,15 +57,32 @@ def _env() -> dict[str, str]:
 class Host:
     """A worker process inside a namespace (its own process group: the "host")."""
 
+    # A worker start in a fresh namespace has, rarely (seen three times in session 1's
+    # full-suite runs, cause not found yet), hung before "ready" without a message.
+    # So a start that does not get ready is killed (never leaked: it would hold the port
+    # and fail every later test) and tried once more.
+    START_TRIES, START_TIMEOUT_S = 2, 30
+
     def __init__(self, lab: netns.NetLab, host: str, name: str, *extra: str) -> None:
         self.name = name
         argv = [sys.executable, "-m", "cosim.cli", "worker", "--name", name,
                 "--allow", "tests.zenoh_components", "--allow", "cosim.sources",
                 "--allow", "controllers.", "--allow-fmu", *extra]
-        self.proc = subprocess.Popen(lab.exec(host, argv), cwd=ROOT, env=_env(),
-                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                     start_new_session=True, text=True)
-        wait_for_line(self.proc, f"worker '{name}' ready", 60)
+        failures = []
+        for _ in range(self.START_TRIES):
+            self.proc = subprocess.Popen(lab.exec(host, argv), cwd=ROOT, env=_env(),
+                                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                         start_new_session=True, text=True)
+            try:
+                wait_for_line(self.proc, f"worker '{name}' ready", self.START_TIMEOUT_S)
+                return
+            except AssertionError as exc:
+                failures.append(str(exc))
+                self.signal(signal.SIGKILL)
+                self.proc.wait()
+                self.proc.stdout.close()
+        raise AssertionError(f"worker {name!r} did not start in {self.START_TRIES} tries: "
+                             + " | ".join(failures))
 
     def signal(self, sig: int) -> None:
         """Send `sig` to the worker and every component process it started."""
