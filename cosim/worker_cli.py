@@ -6,6 +6,8 @@ options mean the same everywhere and add to those of a `--deploy` file.
 
 from __future__ import annotations
 
+import faulthandler
+import signal
 from pathlib import Path
 from typing import Any, Optional
 
@@ -49,6 +51,8 @@ def worker(
         agent = Worker(name, settings, allow or worker_protocol.DEFAULT_ALLOW, allow_fmu)
     except (UserError, ValueError) as error:
         raise user_error_exit(UserError(str(error))) from None
+    # `kill -USR1 <pid>` prints where a stuck worker is (a long-running service must be debuggable).
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     print(f"worker {agent.name!r} on {agent.host}: listen {settings.listen or '-'}, "
           f"connect {settings.connect or '-'}, allow {', '.join(agent.allow)}"
           f"{', FMUs' if agent.allow_fmu else ''}", flush=True)

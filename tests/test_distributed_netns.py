@@ -77,12 +77,25 @@ class Host:
                 wait_for_line(self.proc, f"worker '{name}' ready", self.START_TIMEOUT_S)
                 return
             except AssertionError as exc:
-                failures.append(str(exc))
+                failures.append(str(exc) + self._stack_dump())
                 self.signal(signal.SIGKILL)
                 self.proc.wait()
                 self.proc.stdout.close()
         raise AssertionError(f"worker {name!r} did not start in {self.START_TRIES} tries: "
                              + " | ".join(failures))
+
+    def _stack_dump(self) -> str:
+        """Where a stuck worker is: its threads' stacks (the worker prints them on SIGUSR1)."""
+        if self.proc.poll() is not None:
+            return ""
+        os.kill(self.proc.pid, signal.SIGUSR1)
+        lines, end = [], time.monotonic() + 2.0
+        while time.monotonic() < end and select.select([self.proc.stdout], [], [], 0.2)[0]:
+            line = self.proc.stdout.readline()
+            if not line:
+                break
+            lines.append(line)
+        return " stacks: " + "".join(lines)
 
     def signal(self, sig: int) -> None:
         """Send `sig` to the worker and every component process it started."""
