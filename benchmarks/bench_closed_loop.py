@@ -2,7 +2,7 @@
 
 Writes a scenario (two-lane road with a 150 m bend, 10 ms tick, the planner at
 10 Hz, lane keeping or lane change), then runs it through the real master
-(`cosim.master.Master` over `FmuComponent` and `InprocComponent` hosts, the
+(`cosim.engine.master.Master` over `FmuComponent` and `InprocComponent` hosts, the
 hosts `cosim run --transport inproc` uses, no recorder) for N simulated
 seconds, in alternating repetitions of two kinds:
 
@@ -36,12 +36,12 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from cosim.errors import UserError  # noqa: E402
-from cosim.fmu_component import FmuComponent  # noqa: E402
-from cosim.inproc import InprocComponent  # noqa: E402
-from cosim.master import Master  # noqa: E402
-from cosim.run import prepare_run  # noqa: E402
-from cosim.scenario import load_scenario  # noqa: E402
-from cosim.wiring import resolve_wiring  # noqa: E402
+from cosim.fmu.host import FmuComponent  # noqa: E402
+from cosim.transport.inproc import InprocComponent  # noqa: E402
+from cosim.engine.master import Master  # noqa: E402
+from cosim.execution.prepare import prepare_run  # noqa: E402
+from cosim.scenario.loader import load_scenario  # noqa: E402
+from cosim.engine.wiring import resolve_wiring  # noqa: E402
 
 TARGET_RTF = 500.0
 CLOCKS = {"cpu": time.thread_time, "wall": time.perf_counter}
@@ -74,7 +74,7 @@ def write_scenario(folder: Path, seconds: float, controller: str, manoeuvre: str
         "components": {
             "vehicle": {"fmu": "Vehicle8DOF", "parameters": {"vx0": 10.0, "cx": 0.42}},
             "controller": {"python": python, "period": 0.01, "parameters": parameters},
-            "planner": {"python": "controllers.planner:Planner", "period": 0.1, "parameters": {
+            "planner": {"python": "controllers.planning:Planner", "period": 0.1, "parameters": {
                 "road": {"builder": "two_lane", "length": max(400.0, 100.0 + 12.0 * seconds), "radius": 150.0},
                 "lane": 0, "manoeuvre": MANOEUVRES[manoeuvre],
                 "speed": {"v_max": 12.0, "a_lat_max": 2.0, "a_max": 1.0, "d_max": 1.5, "j_max": 1.0}}},

@@ -24,11 +24,11 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
 try:
-    from cosim import fmu_build
+    from cosim.fmu import build as fmu_build
 except ModuleNotFoundError:  # run as a script from a checkout without installing
     import sys
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-    from cosim import fmu_build
+    from cosim.fmu import build as fmu_build
 
 H = 0.01
 INPUTS = {"delta": 0.01, "torque": 150.0, "wind_fx": 0.0, "wind_fy": 100.0, "mu": 1.0}

@@ -3,7 +3,7 @@
 Three trivial components shaped like the closed loop (a plant without
 feedthrough with 6 outputs, a controller reading them plus a reference, a
 planner at 1/10 of the rate) run for N ticks twice: called directly in a
-hand-written loop with prebuilt input dicts, and through `cosim.master.Master`
+hand-written loop with prebuilt input dicts, and through `cosim.engine.master.Master`
 with `InprocComponent` hosts. The difference per tick is the master's overhead
 (gather, scatter, output checks, scheduling, hosting). A second case gives the
 planner a trajectory window (7 arrays of 64 points) as in the real scenarios,
@@ -26,10 +26,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from cosim.component import Component, Port  # noqa: E402
-from cosim.inproc import InprocComponent, PythonComponentLaunch  # noqa: E402
-from cosim.master import Master  # noqa: E402
-from cosim.recorder import Recorder  # noqa: E402
-from cosim.wiring import Edge  # noqa: E402
+from cosim.transport.inproc import InprocComponent, PythonComponentLaunch  # noqa: E402
+from cosim.engine.master import Master  # noqa: E402
+from cosim.results.recorder import Recorder  # noqa: E402
+from cosim.engine.wiring import Edge  # noqa: E402
 
 STATES = ("x", "y", "psi", "vx", "vy", "r")
 WINDOW = 64

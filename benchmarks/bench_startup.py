@@ -40,7 +40,7 @@ MARKS = ("scenario_loaded", "spawned", "fmus_ready", "components_ready", "tick0"
 def cosim_command() -> list[str]:
     """The `cosim` console script of this interpreter's environment, else `python -m`."""
     script = Path(sys.executable).parent / "cosim"
-    return [str(script)] if script.is_file() else [sys.executable, "-m", "cosim.cli"]
+    return [str(script)] if script.is_file() else [sys.executable, "-m", "cosim.cli.app"]
 
 
 def run_once(scenario: Path, transport: str, out: Path, duration: float,

@@ -3,7 +3,7 @@
 The Vehicle8DOF FMU (FMI 2.0, built here into a temporary folder) runs alone
 for N steps of 10 ms with constant inputs, the same .fmu file in every case:
 
-- master: `cosim.master.Master` over a `cosim.fmu_component.FmuComponent`,
+- master: `cosim.engine.master.Master` over a `cosim.fmu.host.FmuComponent`,
   as `cosim run --transport inproc` hosts an FMU; the constant inputs are the
   defaults of its unconnected inputs; without and with the `Recorder`
   writing signals.csv;
@@ -47,11 +47,11 @@ from typing import Any
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.common import interleaved, min_and_median  # noqa: E402
-from cosim import fmu_build  # noqa: E402
-from cosim.fmu_component import FmuComponent  # noqa: E402
-from cosim.fmu_interface import describe_fmu  # noqa: E402
-from cosim.master import Master  # noqa: E402
-from cosim.recorder import Recorder  # noqa: E402
+from cosim.fmu import build as fmu_build  # noqa: E402
+from cosim.fmu.host import FmuComponent  # noqa: E402
+from cosim.fmu.interface import describe_fmu  # noqa: E402
+from cosim.engine.master import Master  # noqa: E402
+from cosim.results.recorder import Recorder  # noqa: E402
 
 MODEL = "Vehicle8DOF"
 H_NS = 10_000_000  # the step, in libcosim's integer nanoseconds

@@ -22,8 +22,8 @@ import time
 import numpy as np
 import zenoh
 
-from cosim.inproc import PythonComponentLaunch
-from cosim.zenoh_transport import ZenohComponents, config
+from cosim.transport.inproc import PythonComponentLaunch
+from cosim.transport.zenoh import ZenohComponents, config
 
 PING, PONG = "bench/raw/ping", "bench/raw/pong"
 
@@ -107,7 +107,7 @@ class TickLoop:
 def measure_interleaved(count: int, blocks: int) -> tuple[np.ndarray, np.ndarray]:
     """(raw round trips, ticks) in seconds, measured in alternating blocks so that
     load from other processes on the machine weighs on both alike."""
-    spec = PythonComponentLaunch("echo", "tests.zenoh_components:Echo", {}, 1)
+    spec = PythonComponentLaunch("echo", "tests.helpers.components:Echo", {}, 1)
     raw: list[float] = []
     ticks: list[float] = []
     with RawPair() as pair, ZenohComponents([spec], run_id="bench") as hosted:

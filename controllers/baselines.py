@@ -26,11 +26,11 @@ import math
 from collections.abc import Mapping
 
 from cosim.component import Component, ComponentError, Value
-from controllers.control_common import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits,
+from controllers.tracking import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits,
                                         InputReader, SpeedPI, SteeringLimiter, StepClock,
                                         empty_window_outputs, finite_outputs, path_errors)
 from controllers.vehicle_params import VehicleParams
-from controllers.window_projection import PreparedWindow, foot, point_at, wrap_angle
+from controllers.road.projection import PreparedWindow, foot, point_at, wrap_angle
 
 OUTPUT_NAMES: tuple[str, ...] = tuple(port.name for port in COMMAND_OUTPUTS)
 SLOT = 2      # the PreparedWindow tracking slot of the steering law's own projection point

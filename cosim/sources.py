@@ -1,7 +1,7 @@
 """Signal sources: components that produce a disturbance signal `value`.
 
 A scenario's `sources:` entries become these components (see
-cosim.scenario_sources for the YAML fields, which are these classes' keyword
+cosim.scenario.sources for the YAML fields, which are these classes' keyword
 arguments). All are pure functions of time, except `Table(over="distance")`,
 which integrates the distance travelled by the point on its inputs x, y.
 Times are absolute simulation times (the scenario's start_time included).

@@ -9,12 +9,12 @@ Each combination is the scenario file with two overrides: the plant
 `controller` component (open_loop) runs once per plant. Each run gets its own
 folder DIR/runs/<scenario>-<controller>-<plant>; the table goes to
 DIR/results.csv and DIR/results.md (markdown), one row per run with the
-metrics of cosim.metrics and the run's status. A run that fails (the vehicle
+metrics of cosim.analysis.metrics and the run's status. A run that fails (the vehicle
 leaves the road, a component error) is a row with status "failed" and its
 message, not an abort: the matrix is there to show such failures.
 
 CONTROLLERS holds the controller lines the scenario files list as comments
-under their `controller:` line; tests/test_scenarios.py checks they agree.
+under their `controller:` line; tests/scenarios/test_shipped.py checks they agree.
 """
 
 from __future__ import annotations
@@ -109,7 +109,7 @@ def scenario_files(names: Sequence[str] = ()) -> list[Path]:
 
 def has_controller(path: Path) -> bool:
     """True when the scenario file declares a `controller` component."""
-    from cosim.scenario import load_scenario
+    from cosim.scenario.loader import load_scenario
 
     return "controller" in load_scenario(path).components
 
@@ -141,9 +141,9 @@ def run_one(path: Path, controller: str, plant: str, out_dir: Path,
         the row; status "failed" with the message when the run failed.
     """
     from cosim.errors import UserError
-    from cosim.metrics import compute_metrics
-    from cosim.run import run_scenario
-    from cosim.scenario import load_scenario
+    from cosim.analysis.metrics import compute_metrics
+    from cosim.execution.run import run_scenario
+    from cosim.scenario.loader import load_scenario
 
     row = MatrixRow(path.stem, controller, plant, "ok")
     started = time.perf_counter()

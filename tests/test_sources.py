@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from cosim.component import ComponentError, Port
-from cosim.scenario import load_scenario
-from cosim.scenario_sources import SOURCE_CLASSES, SOURCE_MODELS
+from cosim.scenario.loader import load_scenario
+from cosim.scenario.sources import SOURCE_CLASSES, SOURCE_MODELS
 from cosim.sources import Constant, Gust, Ramp, Step, Table
 
 

@@ -1,7 +1,7 @@
 /*
  * Lag model: exact solution of y' = (K u - y) / tau over a step with u held:
  *   y(t + h) = K u + (y(t) - K u) exp(-h / tau).
- * Test-only FMU for the co-simulation master (tests/test_fmu_component.py).
+ * Test-only FMU for the co-simulation master (tests/fmu/test_host.py).
  */
 #include <math.h>
 #include <string.h>

@@ -1,0 +1,220 @@
+"""Roads: a reference line with lanes, road (Frenet) coordinates, and track builders.
+
+Lane numbering: lane 0 is the reference line itself (the driving lane of
+right-hand traffic) and lane i lies i lane widths to its left, so the
+reference line's geometry is exactly the path driven in lane 0. A point is
+described in road coordinates by the reference arc length s and a lateral
+offset d (left positive); `frenet_to_world` turns an offset profile d(s) into a
+world trajectory with exact heading, curvature and arc-length rate.
+
+Builders give the paper's roads; `road_from_spec` reads the YAML form:
+    road: satory_standin
+    road: {builder: two_lane, length: 600, radius: 200}
+    road: {reference: {segments: [...]}, lanes: 2, lane_width: 3.5}
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from controllers.road.geometry import Path, SpecError, spec_number
+
+
+@dataclass(frozen=True)
+class Road:
+    """A reference line (centre of lane 0) with `lanes` lanes of `lane_width` to its left."""
+
+    reference: Path
+    lanes: int = 2
+    lane_width: float = 3.5
+    _centres: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __post_init__(self):
+        if not isinstance(self.lanes, int) or self.lanes < 1:
+            raise SpecError(f"road.lanes: expected an integer >= 1, got {self.lanes!r}")
+        if not (np.isfinite(self.lane_width) and self.lane_width > 0):
+            raise SpecError(f"road.lane_width: expected a positive number, got {self.lane_width!r}")
+
+    @property
+    def length(self) -> float:
+        """Length of the reference line, m."""
+        return self.reference.length
+
+    @property
+    def closed(self) -> bool:
+        """True for a loop."""
+        return self.reference.closed
+
+    def check_lane(self, lane, where: str = "lane") -> int:
+        """Validate a lane index and return it as an int."""
+        if isinstance(lane, bool) or not isinstance(lane, (int, np.integer)) or not 0 <= lane < self.lanes:
+            raise SpecError(f"{where}: expected a lane index 0..{self.lanes - 1}, got {lane!r}")
+        return int(lane)
+
+    def lane_offset(self, lane: int) -> float:
+        """Lateral offset of a lane centre from the reference line, m."""
+        return self.check_lane(lane) * self.lane_width
+
+    def lane_at(self, d: float) -> int:
+        """Index of the lane whose centre is nearest to lateral offset d (clamped to the road)."""
+        return int(np.clip(np.rint(d / self.lane_width), 0, self.lanes - 1))
+
+    def lane_centre(self, lane: int) -> Path:
+        """The centre line of a lane as a path of its own (cached)."""
+        lane = self.check_lane(lane)
+        if lane not in self._centres:
+            self._centres[lane] = self.reference.offset(lane * self.lane_width)
+        return self._centres[lane]
+
+    def edges(self) -> tuple[float, float]:
+        """Lateral offsets of the right and left road edges, m."""
+        return -0.5 * self.lane_width, (self.lanes - 0.5) * self.lane_width
+
+
+def frenet_to_world(path: Path, s, d, dd, ddd):
+    """World trajectory of the offset profile d(s) along a reference path.
+
+    Args:
+        path: the reference line.
+        s: reference arc lengths (array).
+        d, dd, ddd: lateral offset and its first and second derivative in s.
+
+    Returns:
+        x, y, psi, kappa of the trajectory and g = d sigma / ds, the rate of
+        its own arc length sigma per reference arc length.
+    """
+    s = np.asarray(s, dtype=float)
+    x0, y0, psi0, k = path.evaluate(s)
+    return frenet_from_base((x0, y0, psi0, k, path.dkappa(s)), d, dd, ddd, s)
+
+
+def frenet_from_base(base, d, dd, ddd, s=None, trig=None):
+    """`frenet_to_world` on reference samples already evaluated.
+
+    Args:
+        base: (x, y, psi, kappa, dkappa/ds) of the reference line at the stations.
+        d, dd, ddd: lateral offset and its first two derivatives in s there.
+        s: the stations (only for error messages).
+        trig: (sin psi, cos psi) of the reference there if known (saves their
+            evaluation at every planner step; the same values bit for bit).
+    """
+    x0, y0, psi0, k, dk = base
+    d, dd, ddd = (np.asarray(a, dtype=float) for a in (d, dd, ddd))
+    a = 1.0 - k * d
+    if (a <= 0.0).any():
+        bad = int(np.argmax(a <= 0.0))
+        where = f" at s = {s[bad]:.3f} m" if s is not None else ""
+        raise SpecError(f"lateral offset {d[bad]:.3f} m{where} crosses the road's "
+                        f"centre of curvature (radius {1.0 / k[bad]:.3f} m)")
+    a1 = -(dk * d + k * dd)
+    g = np.hypot(a, dd)
+    sin_psi, cos_psi = (np.sin(psi0), np.cos(psi0)) if trig is None else trig
+    x = x0 - d * sin_psi
+    y = y0 + d * cos_psi
+    psi = psi0 + np.arctan2(dd, a)
+    kappa = (a * (a * k + ddd) - dd * (a1 - dd * k)) / g ** 3
+    return x, y, psi, kappa, g
+
+
+def _turn(radius: float, angle_deg: float, transition: float) -> list[tuple[float, float, float]]:
+    """Clothoid in, arc, clothoid out: a turn of angle_deg (signed) at radius, as pieces."""
+    k = np.sign(angle_deg) / radius
+    arc = radius * abs(np.radians(angle_deg)) - transition
+    if arc <= 0:
+        raise SpecError(f"turn of {angle_deg} deg at radius {radius} m too short for "
+                        f"{transition} m clothoids")
+    return [(transition, 0.0, k), (arc, k, k), (transition, k, 0.0)]
+
+
+# One half of the stand-in loop: (straight, radius, angle_deg, clothoid length) ...
+# The turns add up to exactly 180 deg, so the second half, the same pieces
+# again, is the first one rotated by 180 deg about the midpoint of the two
+# ends and the loop closes exactly.
+_SATORY_HALF = (
+    (380.0, 150.0, 90.0, 40.0),
+    (240.0, 300.0, -35.0, 30.0),
+    (90.0, 500.0, 35.0, 30.0),
+    (130.0, 50.0, 90.0, 25.0),
+)
+
+
+def satory_standin(lane_width: float = 3.5, lanes: int = 2) -> Road:
+    """A ~3.5 km closed test track standing in for Versailles-Satory.
+
+    The real track geometry is not published (the paper only plots a logged
+    curvature), so this loop only matches its character: long straights,
+    turns of radius 50 to 500 m, an S-bend, and clothoid transitions (so the
+    curvature is continuous). It is point-symmetric and closes exactly;
+    counter-clockwise, starting at the origin heading east.
+
+    Args:
+        lane_width: lane width, m.
+        lanes: number of lanes (lane 0 is the loop itself).
+    """
+    pieces = []
+    for straight, radius, angle, clothoid in _SATORY_HALF * 2:
+        pieces.append((straight, 0.0, 0.0))
+        pieces.extend(_turn(radius, angle, clothoid))
+    return Road(Path.from_pieces(pieces, closed=True), lanes=lanes, lane_width=lane_width)
+
+
+def two_lane_road(length: float = 600.0, radius: float = 0.0, lane_width: float = 3.5,
+                  lanes: int = 2, transition: float = 40.0) -> Road:
+    """A two-lane road starting at the origin heading east: straight or with one bend.
+
+    Args:
+        length: total length, m.
+        radius: 0 for a straight road; otherwise the signed radius (left
+            positive) of a bend in the middle half, entered and left through
+            clothoids of `transition` m, with straights of length/4 either side.
+        lane_width, lanes: lane layout.
+        transition: clothoid length of the bend, m.
+    """
+    length = spec_number(length, "road.length", positive=True)
+    radius = spec_number(radius, "road.radius")
+    if radius == 0:
+        return Road(Path.from_pieces([(length, 0.0, 0.0)]), lanes=lanes, lane_width=lane_width)
+    k = 1.0 / radius
+    arc = length / 2 - 2 * transition
+    if arc <= 0:
+        raise SpecError(f"road.length: {length} m too short for a bend with {transition} m clothoids")
+    pieces = [(length / 4, 0.0, 0.0), (transition, 0.0, k), (arc, k, k), (transition, k, 0.0),
+              (length / 4, 0.0, 0.0)]
+    return Road(Path.from_pieces(pieces), lanes=lanes, lane_width=lane_width)
+
+
+BUILDERS = {"satory_standin": satory_standin, "two_lane": two_lane_road}
+
+
+def road_from_spec(spec, where: str = "road") -> Road:
+    """A Road from its YAML form (see the module docstring).
+
+    Args:
+        spec: a builder name, {builder: name, **its keyword arguments}, or
+            {reference: <path spec>, lanes: n, lane_width: w}.
+        where: location of the spec, for error messages.
+    """
+    if isinstance(spec, str):
+        spec = {"builder": spec}
+    if not isinstance(spec, Mapping):
+        raise SpecError(f"{where}: expected a builder name or a mapping, got {spec!r}")
+    if "builder" in spec:
+        name = spec["builder"]
+        if name not in BUILDERS:
+            raise SpecError(f"{where}.builder: unknown road {name!r} (known: {', '.join(BUILDERS)})")
+        kwargs = {k: v for k, v in spec.items() if k != "builder"}
+        try:
+            return BUILDERS[name](**kwargs)
+        except TypeError as exc:
+            raise SpecError(f"{where}: bad parameters for {name}: {exc}") from None
+    extra = set(spec) - {"reference", "lanes", "lane_width"}
+    if "reference" not in spec or extra:
+        raise SpecError(f"{where}: expected keys reference, lanes, lane_width, got {sorted(spec)}")
+    lanes = spec.get("lanes", 2)
+    if isinstance(lanes, bool) or not isinstance(lanes, int):
+        raise SpecError(f"{where}.lanes: expected an integer, got {lanes!r}")
+    width = spec_number(spec.get("lane_width", 3.5), f"{where}.lane_width", positive=True)
+    return Road(Path.from_spec(spec["reference"], f"{where}.reference"), lanes=lanes, lane_width=width)

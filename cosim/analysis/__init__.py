@@ -1,0 +1,2 @@
+"""Reading run folders back: run data, metrics, cone hits. Never imports a transport.
+"""

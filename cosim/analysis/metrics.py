@@ -1,0 +1,281 @@
+"""Run metrics: tracking errors, actuator effort, friction estimate, cone hits.
+
+`compute_metrics(run_dir)` reads a run folder and returns the metrics the
+paper's experiments are judged by; `write_metrics(run_dir)` merges them into
+the folder's `metrics.json` (keeping what components wrote there). A metric
+whose signals the run did not record is left out, with a note saying why
+(`analyse_run` returns the notes; `write_metrics` saves them in
+`metrics_notes.txt`).
+
+Definitions (t0 = first tick + `metrics.skip_s` from the scenario, default 0):
+- rms_* : time-weighted RMS, sqrt(integral(v^2 dt) / (t_end - t0)), trapezoid rule.
+- max_abs_* : max |v| over the ticks from t0.
+- max_abs_delta_rate : max |finite difference of controller.delta| over time,
+  taken at the controller's period (`components.controller.period`) so a
+  held output is not read as a jump within one tick.
+- mu_true_final : the last value feeding vehicle.mu (its connected source
+  column, else the scenario's vehicle parameter `mu`, else 1.0).
+- mu_hat_final : the last controller.mu_hat.
+- cone_hits : cones touched by the body rectangle (see metrics_cones), when the
+  scenario lists cones under `metrics.cones` or
+  `components.planner.parameters.cones`.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cosim.analysis.cones import cone_hits
+from cosim.analysis.rundata import (AnalysisError, RunData, load_run, loaded_run,
+                                   read_json_object)
+
+METRIC_NAMES = (
+    "rms_yc", "max_abs_yc", "rms_yL", "max_abs_yL", "rms_psiL", "max_abs_psiL",
+    "rms_ex", "max_abs_ex", "max_abs_delta", "max_abs_delta_rate", "max_abs_ay",
+    "mu_true_final", "mu_hat_final", "cone_hits",
+)
+NOTES_FILE = "metrics_notes.txt"
+
+
+def ordered_metric_names(present: set[str]) -> list[str]:
+    """Metric names in table order: the platform's in METRIC_NAMES order, then the others sorted.
+
+    Args:
+        present: the names some run or sample has.
+    """
+    return [n for n in METRIC_NAMES if n in present] + sorted(present - set(METRIC_NAMES))
+
+
+@dataclass
+class MetricsReport:
+    """Computed metrics and the notes on what was left out and why."""
+
+    values: dict[str, float] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+
+def rms(t: np.ndarray, v: np.ndarray) -> float:
+    """Time-weighted RMS of v(t) by the trapezoid rule (plain RMS when t spans no time).
+
+    Args:
+        t: strictly increasing times.
+        v: values at those times.
+    """
+    if len(v) == 1 or t[-1] == t[0]:
+        return float(np.sqrt(np.mean(v * v)))
+    return float(np.sqrt(np.trapezoid(v * v, t) / (t[-1] - t[0])))
+
+
+def lateral_error_cg(run: RunData) -> np.ndarray | None:
+    """yc: controller.yc, else yL - ls psiL with the controller's ls (default 5 m)."""
+    yc = run.signal("controller.yc")
+    if yc is not None:
+        return yc
+    y_l, psi_l = run.signal("controller.yL"), run.signal("controller.psiL")
+    if y_l is None or psi_l is None:
+        return None
+    return y_l - run.number("components.controller.parameters.ls", 5.0) * psi_l
+
+
+def speed_error(run: RunData) -> np.ndarray | None:
+    """ex: controller.ex, else vehicle.vx minus controller.vx_ref or planner.v_ref."""
+    ex = run.signal("controller.ex")
+    if ex is not None:
+        return ex
+    vx = run.signal("vehicle.vx")
+    for ref_name in ("controller.vx_ref", "planner.v_ref"):
+        ref = run.signal(ref_name)
+        if vx is not None and ref is not None:
+            return vx - ref
+    return None
+
+
+def true_mu(run: RunData) -> tuple[np.ndarray, str]:
+    """The friction fed to the vehicle at each tick, and where it came from.
+
+    Follows the connection into `vehicle.mu` (explicit, or the short form
+    "a -> vehicle" feeding it from a.mu) to its source column;
+    when unconnected, the scenario's `components.vehicle.parameters.mu`, else 1.0.
+    """
+    src = run.source_of("vehicle.mu")
+    if src is not None:
+        return run.columns[src], src
+    mu = run.number("components.vehicle.parameters.mu", 1.0)
+    source = "components.vehicle.parameters.mu" if run.lookup(
+        "components.vehicle.parameters.mu") is not None else "default 1.0"
+    return np.full(len(run.time), mu), source
+
+
+def _finite_or_note(name: str, t: np.ndarray, v: np.ndarray, notes: list[str]) -> bool:
+    """True when v is all finite; else add a note naming the first bad tick."""
+    bad = np.flatnonzero(~np.isfinite(v))
+    if len(bad) == 0:
+        return True
+    notes.append(f"{name}: non-finite value {v[bad[0]]!r} at t={t[bad[0]]:.10g} s; left out")
+    return False
+
+
+def _delta_rate(run: RunData, mask: np.ndarray, report: MetricsReport) -> None:
+    delta = run.signal("controller.delta")
+    if delta is None:
+        report.notes.append("max_abs_delta_rate: controller.delta not recorded")
+        return
+    period = run.number("components.controller.period", 0.0)
+    tick = run.number("tick", 0.0)
+    stride = max(1, int(round(period / tick))) if period > 0 and tick > 0 else 1
+    t, d = run.time[mask][::stride], delta[mask][::stride]
+    if len(t) < 2:
+        report.notes.append("max_abs_delta_rate: fewer than two samples")
+        return
+    if _finite_or_note("max_abs_delta_rate", t, d, report.notes):
+        report.values["max_abs_delta_rate"] = float(np.max(np.abs(np.diff(d) / np.diff(t))))
+
+
+def _series_metrics(run: RunData, mask: np.ndarray, report: MetricsReport) -> None:
+    series = {
+        "yc": (lateral_error_cg(run), "controller.yc (or controller.yL, controller.psiL)"),
+        "yL": (run.signal("controller.yL"), "controller.yL"),
+        "psiL": (run.signal("controller.psiL"), "controller.psiL"),
+        "ex": (speed_error(run), "controller.ex (or vehicle.vx and a speed reference)"),
+        "delta": (run.signal("controller.delta"), "controller.delta"),
+        "ay": (run.signal("vehicle.ay"), "vehicle.ay"),
+    }
+    with_rms = {"yc", "yL", "psiL", "ex"}
+    t = run.time[mask]
+    for key, (values, source) in series.items():
+        names = ([f"rms_{key}"] if key in with_rms else []) + [f"max_abs_{key}"]
+        if values is None:
+            report.notes.append(f"{', '.join(names)}: {source} not recorded")
+            continue
+        v = values[mask]
+        if not _finite_or_note(", ".join(names), t, v, report.notes):
+            continue
+        if key in with_rms:
+            report.values[f"rms_{key}"] = rms(t, v)
+        report.values[f"max_abs_{key}"] = float(np.max(np.abs(v)))
+
+
+def _friction_metrics(run: RunData, report: MetricsReport) -> None:
+    mu, _ = true_mu(run)
+    if len(mu):
+        report.values["mu_true_final"] = float(mu[-1])
+    mu_hat = run.signal("controller.mu_hat")
+    if mu_hat is None:
+        report.notes.append("mu_hat_final: controller.mu_hat not recorded")
+    elif len(mu_hat):
+        report.values["mu_hat_final"] = float(mu_hat[-1])
+
+
+def scenario_cones(run: RunData) -> np.ndarray | None:
+    """The cone positions (n, 2) the scenario lists, or None when it lists none.
+
+    Raises:
+        AnalysisError: the cones field is not a list of [x, y] number pairs.
+    """
+    for where in ("metrics.cones", "components.planner.parameters.cones"):
+        cones = run.lookup(where)
+        if cones is None or (isinstance(cones, list) and not cones):
+            continue  # the scenario schema dumps "no cones" as []
+        try:
+            arr = np.asarray(cones, dtype=float)
+        except (TypeError, ValueError):
+            arr = np.empty((0, 3))
+        if arr.ndim != 2 or arr.shape[1] != 2 or not np.all(np.isfinite(arr)):
+            raise AnalysisError(f"{run.run_dir / 'manifest.json'}: scenario.{where}: "
+                                f"expected a list of [x, y] number pairs, found {cones!r}")
+        return arr
+    return None
+
+
+def run_cone_hits(run: RunData) -> tuple[np.ndarray, np.ndarray] | None:
+    """The scenario's cones (n, 2) and, per cone, whether the body touched it.
+
+    The body is `metrics.vehicle_length` x `metrics.vehicle_width` (defaults
+    4.5 m x 1.8 m), its front `metrics.vehicle_front` ahead of the CG (default:
+    half the length). None when the scenario lists no cones or the run did not
+    record vehicle.x, vehicle.y and vehicle.psi.
+    """
+    cones = scenario_cones(run)
+    pose = [run.signal(f"vehicle.{s}") for s in ("x", "y", "psi")]
+    if cones is None or any(p is None for p in pose):
+        return None
+    front = run.lookup("metrics.vehicle_front")
+    hits = cone_hits(*pose, cones,
+                     length=run.number("metrics.vehicle_length", 4.5),
+                     width=run.number("metrics.vehicle_width", 1.8),
+                     front=None if front is None else run.number("metrics.vehicle_front", 0.0))
+    return cones, hits
+
+
+def _cone_metric(run: RunData, report: MetricsReport) -> None:
+    found = run_cone_hits(run)
+    if found is not None:
+        report.values["cone_hits"] = int(np.count_nonzero(found[1]))
+    elif scenario_cones(run) is not None:
+        report.notes.append("cone_hits: vehicle.x, vehicle.y or vehicle.psi not recorded")
+
+
+def analyse_run(run: RunData, skip_s: float | None = None) -> MetricsReport:
+    """Compute every metric the run's signals allow, with notes on the rest.
+
+    Args:
+        run: a loaded run folder.
+        skip_s: initial transient to exclude (s); None: the scenario's
+            `metrics.skip_s`, default 0.
+    """
+    report = MetricsReport()
+    if skip_s is None:
+        skip_s = run.number("metrics.skip_s", 0.0)
+    if len(run.time) == 0:
+        report.notes.append("signals.csv has no rows: no metrics")
+        return report
+    mask = run.time >= run.time[0] + skip_s
+    if not mask.any():
+        report.notes.append(f"skip_s={skip_s} s leaves no ticks: time-series metrics left out")
+    else:
+        _series_metrics(run, mask, report)
+        _delta_rate(run, mask, report)
+    _friction_metrics(run, report)
+    _cone_metric(run, report)
+    return report
+
+
+def compute_metrics(run_dir: str | Path, skip_s: float | None = None) -> dict[str, float]:
+    """The metrics of one run folder (see the module docstring for definitions).
+
+    Args:
+        run_dir: the run folder.
+        skip_s: initial transient to exclude (s); None: from the scenario.
+    """
+    return analyse_run(load_run(run_dir), skip_s).values
+
+
+def write_metrics(run_dir: str | Path, skip_s: float | None = None,
+                  run: RunData | None = None) -> MetricsReport:
+    """Compute the metrics and merge them into `run_dir/metrics.json`.
+
+    Keys other components wrote stay; this module's keys are replaced (a metric
+    left out now is removed). Notes go to `metrics_notes.txt`.
+
+    Args:
+        run_dir: the run folder.
+        skip_s: initial transient to exclude (s); None: from the scenario.
+        run: `run_dir` already loaded (`load_run`), so a caller that also draws
+            the figures parses signals.csv once; None loads it here.
+    """
+    run_dir = Path(run_dir)
+    report = analyse_run(loaded_run(run_dir, run), skip_s)
+    path = run_dir / "metrics.json"
+    merged = {k: v for k, v in read_json_object(path).items() if k not in METRIC_NAMES}
+    merged.update(report.values)
+    path.write_text(json.dumps(merged, indent=2) + "\n")
+    notes_path = run_dir / NOTES_FILE
+    if report.notes:
+        notes_path.write_text("\n".join(report.notes) + "\n")
+    elif notes_path.exists():
+        notes_path.unlink()
+    return report

@@ -1,0 +1,170 @@
+"""The analysis commands of `cosim`: plot, compare, sweep.
+
+`register(app)` adds them to the main typer app (cosim/cli/app.py):
+
+    cosim plot RUN_DIR [--layout track|manoeuvre]
+    cosim compare RUN_DIR [RUN_DIR ...] [--out DIR]
+    cosim sweep SCENARIO --vary PATH=LOW:HIGH ... --samples N [--seed S] [--set PATH=VALUE ...]
+                [--scheduler ADDRESS] [--out DIR] [--transport inproc|zenoh] [--method lhs|uniform]
+
+Their default outputs go to comparisons/ and sweeps/, not runs/, so that
+`cosim compare runs/*` sees only run folders; compare skips, with a note, an
+argument that is a compare or sweep output folder.
+
+A user error (missing run folder, bad --vary, unreachable scheduler) prints
+one line on stderr and exits with status 2, without a traceback.
+"""
+
+from __future__ import annotations
+
+import datetime
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from cosim.cli.common import user_error_exit as _fail
+from cosim.errors import UserError
+
+
+def plot(run_dir: Path = typer.Argument(..., help="run folder"),
+         layout: Optional[str] = typer.Option(None, "--layout",
+                                              help="track | manoeuvre (default: from the scenario)")
+         ) -> None:
+    """Redraw the paper-style figure of a run into its folder."""
+    from cosim.figures.layouts import draw_figures
+
+    try:
+        paths = draw_figures(run_dir, layout)
+    except UserError as exc:
+        raise _fail(exc) from None
+    for path in paths:
+        typer.echo(f"figure: {path}")
+
+
+COMPARE_OUTPUTS = "comparisons"  # default parent of `cosim compare` outputs
+SWEEP_OUTPUTS = "sweeps"  # default parent of `cosim sweep` outputs
+# files that mark a folder as a compare or a sweep output, not a run folder
+_OUTPUT_MARKERS = {"compare_metrics.csv": "a cosim compare output", "sweep.json": "a cosim sweep output"}
+
+
+def stamped_folder(parent: str | Path, name: str,
+                   now: datetime.datetime | None = None) -> Path:
+    """A fresh folder parent/<name>-<UTC timestamp> (a suffix -2, -3... when it exists).
+
+    Args:
+        parent: the folder to create it in (e.g. "runs", "comparisons").
+        name: the leading part of the folder's name.
+        now: the time to stamp (default: now, UTC).
+    """
+    now = now or datetime.datetime.now(datetime.timezone.utc)
+    base = Path(parent) / f"{name}-{now.strftime('%Y%m%dT%H%M%SZ')}"
+    candidate, n = base, 1
+    while candidate.exists():
+        n += 1
+        candidate = base.with_name(f"{base.name}-{n}")
+    return candidate
+
+
+def output_folder_kind(folder: Path) -> str | None:
+    """"a cosim compare output" / "a cosim sweep output" for such a folder, else None.
+
+    Args:
+        folder: a folder given to `cosim compare`.
+    """
+    for marker, kind in _OUTPUT_MARKERS.items():
+        if (Path(folder) / marker).is_file():
+            return kind
+    return None
+
+
+def compare(run_dirs: list[Path] = typer.Argument(
+                ..., help="one or more run folders (compare and sweep outputs are skipped)"),
+            out: Optional[Path] = typer.Option(
+                None, "--out", help="output folder (default: comparisons/compare-<UTC time>)"),
+            layout: Optional[str] = typer.Option(None, "--layout", help="track | manoeuvre")
+            ) -> None:
+    """Overlay one or more runs' figures and tabulate their metrics side by side."""
+    from cosim.figures.compare import compare_runs
+
+    runs = []
+    for folder in run_dirs:
+        kind = output_folder_kind(folder)
+        if kind is None:
+            runs.append(folder)
+        else:
+            typer.echo(f"skipped {folder}: {kind}, not a run folder", err=True)
+    if not runs:
+        raise _fail(UserError("compare: no run folder among the arguments "
+                              f"({', '.join(str(d) for d in run_dirs)})"))
+    out_dir = out if out is not None else stamped_folder(COMPARE_OUTPUTS, "compare")
+    try:
+        paths = compare_runs(runs, out_dir, layout)
+    except UserError as exc:
+        raise _fail(exc) from None
+    typer.echo(paths[2].read_text(), nl=False)
+    for path in paths:
+        typer.echo(f"wrote: {path}")
+
+
+def _print_summary(result) -> None:
+    from cosim.execution.sweep import STATS
+
+    table = Table(title=f"sweep: {len(result.samples)} samples, {len(result.failures)} failed")
+    table.add_column("metric", no_wrap=True)
+    for stat in STATS:
+        table.add_column(stat, justify="right")
+    for name, stats in result.summary.items():
+        table.add_row(name, str(int(stats["n"])), *(f"{stats[k]:.4g}" for k in STATS[1:]))
+    console = Console()
+    if not console.is_terminal:
+        console = Console(width=160)  # a pipe or a file: do not squeeze the table to 80 columns
+    console.print(table)
+    for failure in result.failures:
+        console.print(f"[yellow]failed:[/yellow] {escape(failure.error)}", markup=True, highlight=False)
+
+
+def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
+          vary: list[str] = typer.Option(..., "--vary", help="PATH=LOW:HIGH, repeatable"),
+          sets: Optional[list[str]] = typer.Option(None, "--set",
+                                                   help="PATH=VALUE fixed for every sample, repeatable"),
+          samples: int = typer.Option(..., "--samples", help="number of sampled runs"),
+          seed: int = typer.Option(0, "--seed", help="sampling seed"),
+          scheduler: Optional[str] = typer.Option(None, "--scheduler",
+                                                  help="Dask scheduler address (default: a local cluster)"),
+          out: Optional[Path] = typer.Option(None, "--out",
+                                             help="output folder (default: "
+                                                  "sweeps/<name>-s<seed>-n<samples>-<UTC time>)"),
+          transport: str = typer.Option("inproc", "--transport", help="inproc | zenoh, for each run"),
+          method: str = typer.Option("lhs", "--method", help="lhs | uniform")) -> None:
+    """Monte-Carlo runs of a scenario on Dask; the distribution of every metric."""
+    from cosim.execution.sweep import run_sweep
+
+    out_dir = out if out is not None else stamped_folder(
+        SWEEP_OUTPUTS, f"{scenario.stem}-s{seed}-n{samples}")
+    try:
+        result = run_sweep(scenario, vary, samples, seed=seed, scheduler=scheduler,
+                           out_dir=out_dir, transport=transport, method=method,
+                           sets=sets or ())
+    except UserError as exc:
+        raise _fail(exc) from None
+    _print_summary(result)
+    if result.summary:
+        from cosim.figures.sweep import draw_sweep_histograms
+
+        typer.echo(f"figure: {draw_sweep_histograms(result)}")
+    typer.echo(f"results: {result.out_dir}")
+
+
+def register(app: typer.Typer) -> None:
+    """Add the plot, compare and sweep commands to the `cosim` app.
+
+    Args:
+        app: the main typer application.
+    """
+    app.command("plot")(plot)
+    app.command("compare")(compare)
+    app.command("sweep")(sweep)

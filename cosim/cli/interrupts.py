@@ -1,0 +1,44 @@
+"""Ctrl-C while the `cosim` command loads: one line and the failed-run status, no traceback.
+
+typer and rich take about 0.2 s to import; a Ctrl-C in that time would print a
+KeyboardInterrupt traceback. `quiet_until_started` installs a handler that
+prints one line and exits 1 (for `run`, the line of a run interrupted before
+tick 0); `restore` gives Ctrl-C back to Python once the command has started.
+Standard library only, so that it is cheap to import first.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+
+
+def _early_interrupt(signum: int, frame: object) -> None:
+    running = sys.argv[1:2] == ["run"]
+    sys.stderr.write("run failed: interrupted before tick 0\n" if running else "cosim: interrupted\n")
+    raise SystemExit(1)
+
+
+def _is_cosim_program(module_name: str) -> bool:
+    """True when this process is the `cosim` command (not a test importing the CLI)."""
+    program = sys.argv[0].replace("\\", "/").rsplit("/", 1)[-1] if sys.argv else ""
+    return program in ("cosim", "app.py") or module_name == "__main__"
+
+
+def quiet_until_started(module_name: str) -> None:
+    """Install the one-line Ctrl-C handler when this process is the `cosim` command.
+
+    Args:
+        module_name: `__name__` of the entry module ("__main__" under `python -m`).
+    """
+    if _is_cosim_program(module_name) and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        try:
+            signal.signal(signal.SIGINT, _early_interrupt)
+        except ValueError:  # not the main thread: leave signals alone
+            pass
+
+
+def restore() -> None:
+    """Give Ctrl-C back to Python (KeyboardInterrupt) once the command has started."""
+    if signal.getsignal(signal.SIGINT) is _early_interrupt:
+        signal.signal(signal.SIGINT, signal.default_int_handler)

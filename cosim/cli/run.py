@@ -1,0 +1,219 @@
+"""`cosim run`: load a scenario, run it, then print its summary and draw its figures.
+
+The run's folder is announced as soon as it exists; a user error prints one
+line and exits 2, a run that fails or is interrupted exits 1 after writing what
+it has (see `cosim.execution.run`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+import datetime
+import signal
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, Optional
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from cosim.cli import interrupts
+from cosim.cli.common import user_error_exit
+from cosim.errors import UserError
+
+DEFAULT_TRANSPORT = "zenoh"  # DESIGN.md: each Python component its own OS process
+EXIT_FAILED_RUN = 1
+
+
+def default_run_dir(name: str, now: datetime.datetime | None = None) -> Path:
+    """A fresh folder runs/<name>-<UTC timestamp> (a suffix when it exists).
+
+    Args:
+        name: the scenario's name.
+        now: the time to stamp (default: now, UTC).
+    """
+    from cosim.cli.analysis import stamped_folder
+
+    return stamped_folder("runs", name, now)
+
+
+def run(
+    scenario: Path = typer.Argument(..., help="scenario YAML file"),
+    out: Optional[Path] = typer.Option(None, "--out", help="run folder (default: runs/<name>-<UTC time>)"),
+    transport: str = typer.Option(DEFAULT_TRANSPORT, "--transport", help="inproc | zenoh"),
+    set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE (YAML value), repeatable"),
+    realtime: Optional[float] = typer.Option(
+        None, "--realtime", help="pace to wall clock at FACTOR (bare --realtime: 1.0)"),
+    figures: bool = typer.Option(True, "--figures/--no-figures", help="draw the run's figures"),
+    place: list[str] = typer.Option([], "--place", help="COMPONENT=WORKER (overrides host:), repeatable"),
+    listen: list[str] = typer.Option([], "--listen", help="master endpoint the workers reach"),
+    connect: list[str] = typer.Option([], "--connect", help="worker or router endpoint, repeatable"),
+    deploy: Optional[Path] = typer.Option(None, "--deploy", help="deployment settings YAML (endpoints, TLS, ACL)"),
+    deadline: float = typer.Option(10.0, "--deadline", help="per-exchange deadline of remote components, s"),
+    prestart: bool = typer.Option(True, "--prestart/--no-prestart",
+                                  help="start component processes while the scenario loads"),
+) -> None:
+    """Run a scenario and write its run folder."""
+    from cosim.execution.run import check_run_options
+    from cosim.engine.startup import StartupClock
+
+    clock = StartupClock.from_process_start()  # time to tick 0 as the user sees it
+    interrupts.restore()  # from here a Ctrl-C is handled below and by the run
+    try:
+        check_run_options(transport, realtime)  # option errors come before anything else
+    except UserError as error:
+        raise user_error_exit(error) from None
+    early = None
+    try:
+        if prestart and transport == "zenoh" and not (place or listen or connect or deploy):
+            from cosim.execution.prestart import prestart_components
+
+            early = prestart_components(scenario)  # their start overlaps the scenario's load
+        result = _load_and_run(scenario, set_, out, (deploy, listen, connect), clock,
+                               transport=transport, realtime=realtime, place=place,
+                               deadline_s=deadline, prestart=early)
+    except UserError as error:
+        raise user_error_exit(error) from None
+    except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
+        raise _interrupted_exit() from None
+    except Exception as exc:
+        if not isinstance(exc.__context__, KeyboardInterrupt):
+            raise
+        raise _interrupted_exit(f"{type(exc).__name__}: {exc}") from None  # while stopping
+    finally:
+        if early is not None:
+            early.close()
+    _finish_run(result, figures)
+
+
+def _interrupted_exit(stop_error: str | None = None) -> typer.Exit:
+    """Say the run was interrupted before tick 0; the exit of a failed run (status 1).
+
+    Args:
+        stop_error: an error raised while the interrupted start-up was undone.
+    """
+    from cosim.execution.abort import INTERRUPTED_BEFORE_TICK0
+
+    note = f" (then, while stopping: {stop_error})" if stop_error else ""
+    Console(stderr=True, highlight=False, soft_wrap=True).print(
+        f"[red]run failed:[/red] {INTERRUPTED_BEFORE_TICK0}{escape(note)}", markup=True)
+    return typer.Exit(EXIT_FAILED_RUN)
+
+
+def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path],
+                  endpoints: tuple[Optional[Path], list[str], list[str]], clock: Any,
+                  **run_options: Any) -> Any:
+    """Load the scenario, name its run folder, then run it (SIGTERM ends it cleanly).
+
+    Args:
+        scenario_file: the scenario YAML.
+        overrides: the `--set PATH=VALUE` values.
+        out: the run folder, or None for a fresh one under runs/.
+        endpoints: `--deploy` file, `--listen` and `--connect` values.
+        clock: the cosim.engine.startup.StartupClock of the command (marks "scenario_loaded").
+        run_options: passed on to `cosim.execution.run.run_scenario`.
+    Returns:
+        The cosim.execution.run.RunResult.
+    """
+    from cosim.execution.run import run_scenario
+    from cosim.scenario.loader import load_scenario
+
+    loaded = load_scenario(scenario_file, overrides=overrides)
+    clock.mark("scenario_loaded")
+    folder = out if out is not None else default_run_dir(loaded.name)
+    settings = None
+    if endpoints[0] is not None or endpoints[1] or endpoints[2]:
+        from cosim.cli.distributed import load_settings
+        settings = load_settings(*endpoints)
+    with _sigterm_interrupts():
+        return run_scenario(loaded, folder, progress=sys.stdout.isatty(), deploy=settings,
+                            clock=clock, on_live=_print_live, on_folder=_print_folder,
+                            **run_options)
+
+
+def _print_folder(folder: Path) -> None:
+    """Tell the user where the run is written (called once the folder exists)."""
+    print(f"run folder: {folder}", flush=True)
+
+
+def _finish_run(result: Any, figures: bool) -> None:
+    """Analyse the run folder and print the summary; a failed run exits with status 1.
+
+    Args:
+        result: the cosim.execution.run.RunResult.
+        figures: draw the run's figures.
+    """
+    from cosim.cli.summary import print_summary
+
+    if result.ticks > 0:
+        for note in analyse_run_folder(result, figures):
+            print(note)
+    print_summary(result)  # run table, then metrics table
+    if result.status != "ok":
+        Console(stderr=True, highlight=False, soft_wrap=True).print(
+            f"[red]run failed:[/red] {escape(str(result.error))}", markup=True)
+        raise typer.Exit(EXIT_FAILED_RUN)
+
+
+def _print_live(run_id: str, endpoint: str) -> None:
+    """Tell the user how to watch the run live (called before tick 0)."""
+    print(f"run id: {run_id}  live: {endpoint}  (watch: cosim watch {run_id} "
+          f"--connect {endpoint})", flush=True)
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """Turn SIGTERM into KeyboardInterrupt so the run records and closes its files."""
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt("terminated by SIGTERM")
+
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def analyse_run_folder(result: Any, figures: bool) -> list[str]:
+    """Merge the run metrics into metrics.json and draw the figures; notes to print.
+
+    A run folder that cannot be analysed (e.g. a scenario without a vehicle)
+    gives a note, not an error: the run itself succeeded.
+
+    Args:
+        result: a cosim.execution.run.RunResult (its metrics are refreshed from metrics.json).
+        figures: draw the PNG figures too.
+    """
+    from cosim.analysis.metrics import write_metrics
+    from cosim.analysis.rundata import load_run
+
+    try:
+        run = load_run(result.out_dir)  # signals.csv parsed once, for metrics and figures
+    except Exception as exc:  # analysis is best effort after a run
+        return [f"metrics not computed: {exc}"] + ([f"figures not drawn: {exc}"] if figures else [])
+    notes: list[str] = []
+    try:
+        write_metrics(result.out_dir, run=run)
+        result.metrics = json.loads((result.out_dir / "metrics.json").read_text())
+    except Exception as exc:
+        notes.append(f"metrics not computed: {exc}")
+    if figures:
+        try:
+            from cosim.figures.layouts import draw_figures
+
+            notes += [f"figure: {path}" for path in draw_figures(result.out_dir, run=run)]
+        except Exception as exc:
+            notes.append(f"figures not drawn: {exc}")
+    return notes
+
+
+def register(app: typer.Typer) -> None:
+    """Add `run` to the main typer app."""
+    app.command()(run)

@@ -1,0 +1,108 @@
+"""The closing summary of `cosim run`: a run table and a metrics table.
+
+The run table gives status, ticks, times, the real-time factor, the time to
+tick 0 and the pacing statistics; the metrics table lists the metrics of
+`cosim.analysis.metrics` in their canonical order with unit and meaning, then the
+metrics the components reported ("component.metric"). Values are rounded for
+reading; metrics.json keeps them exact.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from rich.console import Console
+from rich.table import Table
+
+# unit and quantity of each metric of cosim.analysis.metrics (METRIC_NAMES), in that order;
+# the name's prefix says the statistic (rms_: time-weighted RMS, max_abs_: max |.|)
+METRIC_INFO: dict[str, tuple[str, str]] = {
+    "rms_yc": ("m", "lateral error at the CG"),
+    "max_abs_yc": ("m", "lateral error at the CG"),
+    "rms_yL": ("m", "lateral error at the preview point"),
+    "max_abs_yL": ("m", "lateral error at the preview point"),
+    "rms_psiL": ("rad", "heading error to the path"),
+    "max_abs_psiL": ("rad", "heading error to the path"),
+    "rms_ex": ("m/s", "speed error vx - vx_ref"),
+    "max_abs_ex": ("m/s", "speed error vx - vx_ref"),
+    "max_abs_delta": ("rad", "steering angle"),
+    "max_abs_delta_rate": ("rad/s", "steering rate"),
+    "max_abs_ay": ("m/s2", "lateral acceleration"),
+    "mu_true_final": ("1", "road friction at the end"),
+    "mu_hat_final": ("1", "friction estimate at the end"),
+    "cone_hits": ("", "cones touched"),
+}
+
+
+def metric_rows(metrics: Mapping[str, Any]) -> list[tuple[str, str, str, str]]:
+    """(name, value, unit, meaning) rows: known metrics in canonical order, then the rest.
+
+    Args:
+        metrics: metric name -> value (as in metrics.json).
+    """
+    known = [n for n in METRIC_INFO if n in metrics]
+    others = sorted(n for n in metrics if n not in METRIC_INFO)
+    rows = []
+    for name in known + others:
+        component = name.split(".")[0] if "." in name else None
+        unit, meaning = METRIC_INFO.get(name, ("", f"reported by {component}" if component else ""))
+        rows.append((name, format_value(metrics[name]), unit, meaning))
+    return rows
+
+
+def format_value(value: Any) -> str:
+    """A metric value for reading: integers as such, floats to 4 significant digits.
+
+    Args:
+        value: a number (or anything else, shown as is).
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return str(value)
+    if isinstance(value, int) or (value.is_integer() and abs(value) < 1e15):
+        return str(int(value))
+    return f"{value:.4g}"
+
+
+def run_rows(result: Any) -> list[tuple[str, str]]:
+    """(quantity, value) rows of the run table.
+
+    Args:
+        result: a cosim.execution.run.RunResult.
+    """
+    rows = [("folder", str(result.out_dir)), ("ticks", str(result.ticks)),
+            ("sim time", f"{result.sim_time_s:.6g} s"),
+            ("wall time", f"{result.wall_time_s:.4g} s"),
+            ("real-time factor", f"{result.real_time_factor:.4g}")]
+    tick0 = getattr(result, "time_to_tick0_s", None)
+    if tick0 is not None:
+        rows.append(("time to tick 0", f"{tick0:.3f} s"))
+    for key, value in (result.realtime or {}).items():
+        rows.append((f"realtime.{key}", f"{value:.4g}" if isinstance(value, float) else str(value)))
+    return rows
+
+
+def print_summary(result: Any, console: Console | None = None) -> None:
+    """Print the run table, then the metrics table (when there are metrics).
+
+    Args:
+        result: a cosim.execution.run.RunResult.
+        console: where to print (default: stdout).
+    """
+    console = console or Console(highlight=False)
+    table = Table(title=f"run {result.status}", show_header=False)
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    for row in run_rows(result):
+        table.add_row(*row)
+    console.print(table)
+    if not result.metrics:
+        return
+    metrics = Table(title="metrics")
+    metrics.add_column("metric")
+    metrics.add_column("value", justify="right")
+    metrics.add_column("unit")
+    metrics.add_column("meaning")
+    for row in metric_rows(result.metrics):
+        metrics.add_row(*row)
+    console.print(metrics)

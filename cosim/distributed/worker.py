@@ -1,0 +1,237 @@
+"""`cosim worker`: a long-running agent that starts components on its host for masters.
+
+    worker = Worker("w1", settings, allow=["controllers.", "cosim.sources"])
+    worker.serve()              # until SIGTERM / SIGINT or `stop_event` is set
+
+The worker opens one Zenoh peer session (endpoints, TLS and ACL from the
+deployment settings), declares a liveliness token and a queryable under
+`cosim/workers/<name>` and answers the requests of `cosim.distributed.protocol`.
+A start request spawns the ordinary component runner
+(`cosim.transport.zenoh.runner`) as a child process that connects back to the
+master's endpoints; from then on master and component talk directly, the
+worker only watches: when a child ends it puts an exit notice (exit code and
+last output) on the run's key, so the master learns why. Only classes from
+allowed module prefixes are started; the worker itself never imports what a
+request names. A run's failure never ends the worker.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from cosim.distributed import protocol as proto
+from cosim.distributed.deploy import (DeploySettings, check_endpoint, session_mode, zenoh_config,
+                          zenoh_settings)
+from cosim.errors import UserError
+from cosim.fmu.remote import FMU_HOST_CLASS, store_fmu
+from cosim.transport.inproc import PythonComponentLaunch
+from cosim.distributed.service import stop_event_with_signals
+from cosim.transport.zenoh.config import check_key_chunk
+from cosim.transport.zenoh.processes import ChildProcess
+
+POLL_S = 0.005
+REAP_POLL_S = 0.05
+STOP_GRACE_S = 1.5
+
+
+class Worker:
+    """One worker agent.
+
+    Args:
+        name: the worker's name (a key chunk: letters, digits, '_', '.', '-').
+        settings: endpoints, TLS and ACL of its session.
+        allow: module prefixes of the component classes it may start.
+        allow_fmu: whether masters may send FMUs (native code) to run here.
+    """
+
+    def __init__(self, name: str, settings: DeploySettings | None = None,
+                 allow: Sequence[str] = proto.DEFAULT_ALLOW, allow_fmu: bool = False) -> None:
+        self.name = check_key_chunk(name, "worker name")
+        self.settings = settings or DeploySettings()
+        self.allow = tuple(allow) or proto.DEFAULT_ALLOW
+        self.host = socket.gethostname()
+        self._children: dict[tuple[str, str], ChildProcess] = {}
+        self._lock = threading.Lock()
+        self._session: Any = None
+        self.allow_fmu = bool(allow_fmu)
+        self._fmu_cache = Path(tempfile.gettempdir()) / f"cosim-worker-{self.name}-fmus"
+        self.mode = session_mode(self.settings.listen, self.settings.connect)
+
+    # ------------------------------------------------------------------ serving
+    def serve(self, stop_event: threading.Event | None = None,
+              on_ready: Callable[[], None] | None = None) -> None:
+        """Answer requests until `stop_event` is set (or SIGTERM/SIGINT in the main thread).
+
+        Args:
+            stop_event: set it to end the worker (None: only signals end it).
+            on_ready: called once the queryable and token are declared.
+        """
+        stop_event = stop_event_with_signals(stop_event)
+        conf = zenoh_config(self.settings, self.mode, self.settings.listen, self.settings.connect)
+        try:
+            session = zenoh.open(conf)
+        except zenoh.ZError as exc:
+            raise UserError(f"worker {self.name!r}: cannot open its Zenoh session "
+                            f"(listen {self.settings.listen}, connect {self.settings.connect}): "
+                            f"{exc}") from None
+        with session:
+            self._session = session
+            token = session.liveliness().declare_token(proto.worker_key(self.name))
+            queryable = session.declare_queryable(proto.worker_key(self.name))
+            reaper = threading.Thread(target=self._reap_loop, args=(stop_event,),
+                                      name="cosim-worker-reaper", daemon=True)
+            reaper.start()
+            if on_ready is not None:
+                on_ready()
+            try:
+                self._answer_until(queryable, stop_event)
+            finally:
+                stop_event.set()
+                reaper.join()
+                self._stop_all()
+                queryable.undeclare()
+                token.undeclare()
+
+    def _answer_until(self, queryable: Any, stop_event: threading.Event) -> None:
+        while not stop_event.is_set():
+            query = queryable.try_recv()
+            if query is None:
+                time.sleep(POLL_S)
+                continue
+            try:
+                reply = self.handle(query.payload.to_bytes() if query.payload else b"")
+                query.reply(proto.worker_key(self.name), proto.encode(reply))
+            finally:
+                query.drop()
+
+    # ------------------------------------------------------------------ requests
+    def handle(self, data: bytes) -> dict[str, Any]:
+        """The reply to one request (never raises for a bad request).
+
+        Args:
+            data: the request payload (JSON, see cosim.distributed.protocol).
+        """
+        try:
+            request = proto.decode(data, f"request to worker {self.name!r}")
+            op = request.get("op")
+            if op == "info":
+                return self.info()
+            if op == "start":
+                return {"ok": True, "pid": self._start(request)}
+            if op == "stop":
+                return {"ok": True, "exit_code": self._stop(request)}
+            raise ValueError(f"unknown op {op!r} (info, start, stop)")
+        except (ValueError, UserError, KeyError, TypeError) as exc:
+            text = str(exc)
+            if not text.startswith(f"worker {self.name!r}"):
+                text = f"worker {self.name!r} on host {self.host!r}: {text}"
+            return {"ok": False, "error": text}
+
+    def info(self) -> dict[str, Any]:
+        """What `cosim workers` shows of this worker."""
+        with self._lock:
+            running = len(self._children)
+        return {"ok": True, "name": self.name, "host": self.host, "pid": os.getpid(),
+                "allow": list(self.allow), "allow_fmu": self.allow_fmu, "running": running, "listen": self.settings.listen}
+
+    def _start(self, request: dict[str, Any]) -> int:
+        run_id = check_key_chunk(request["run_id"], "run_id")
+        component = check_key_chunk(request["component"], "component name")
+        class_path = str(request["class_path"])
+        parameters = dict(request.get("parameters", {}))
+        if class_path == FMU_HOST_CLASS:
+            parameters["fmu_file"] = str(self._receive_fmu(component, request.get("fmu")))
+        elif not proto.module_allowed(class_path, self.allow):
+            raise UserError(f"worker {self.name!r} on host {self.host!r} refuses component "
+                            f"{component!r}: module {class_path.partition(':')[0]!r} is not "
+                            f"in its allow-list ({', '.join(self.allow)}); start the worker "
+                            f"with --allow to permit it")
+        connect = [check_endpoint(str(e)) for e in request["connect"]]
+        if not connect:
+            raise ValueError("start request without a master endpoint")
+        launch = PythonComponentLaunch(component, class_path, parameters,
+                                       int(request.get("period_ticks", 1)))
+        # behind a router (client mode) the component falls back to the router when the
+        # master's own endpoint cannot be reached from here
+        session_conf = zenoh_settings(self.settings, self.mode, [],
+                                      list(dict.fromkeys([*connect, *self.settings.connect])))
+        with self._lock:
+            if (run_id, component) in self._children:
+                raise ValueError(f"component {component!r} of run {run_id!r} already runs here")
+            child = ChildProcess(launch, run_id, connect[0],
+                                 ["--zenoh-config", json.dumps(session_conf)])
+            self._children[(run_id, component)] = child
+        return child.pid
+
+    def _receive_fmu(self, component: str, payload: Any) -> Path:
+        """Check and cache the FMU a start request carries; its path on this host."""
+        if not self.allow_fmu:
+            raise UserError(f"worker {self.name!r} on host {self.host!r} refuses FMU component "
+                            f"{component!r}: it does not run FMUs sent over the network; "
+                            f"start it with --allow-fmu to permit it")
+        if not isinstance(payload, dict):
+            raise ValueError(f"start request of FMU component {component!r} carries no FMU")
+        return store_fmu(payload, self._fmu_cache)
+
+    def _stop(self, request: dict[str, Any]) -> int | None:
+        key = (str(request["run_id"]), str(request["component"]))
+        with self._lock:
+            child = self._children.get(key)
+        if child is None:
+            return None  # already ended (and reported)
+        _end_process(child)
+        return child.exit_code()
+
+    # ------------------------------------------------------------------ children
+    def _reap_loop(self, stop_event: threading.Event) -> None:
+        while not stop_event.wait(REAP_POLL_S):
+            with self._lock:
+                ended = [(k, c) for k, c in self._children.items() if c.exit_code() is not None]
+                for key, _ in ended:
+                    del self._children[key]
+            for (run_id, component), child in ended:
+                self._notify_exit(run_id, component, child)
+
+    def _notify_exit(self, run_id: str, component: str, child: ChildProcess) -> None:
+        notice = {"worker": self.name, "host": self.host, "exit_code": child.exit_code(),
+                  "cause": child.describe_exit()}
+        child.close_log()
+        try:
+            self._session.put(proto.exit_key(run_id, component), proto.encode(notice))
+        except zenoh.ZError:
+            pass  # session closing: nobody listens any more
+
+    def _stop_all(self) -> None:
+        with self._lock:
+            children = list(self._children.values())
+            self._children.clear()
+        for child in children:
+            _end_process(child)
+            child.close_log()
+
+
+def _end_process(child: ChildProcess) -> None:
+    """SIGTERM (and SIGCONT) a child, SIGKILL it after a grace period; always waits."""
+    if child.exit_code() is None:
+        try:
+            child.popen.terminate()
+            child.popen.send_signal(signal.SIGCONT)
+        except ProcessLookupError:
+            pass
+    try:
+        child.popen.wait(timeout=STOP_GRACE_S)
+    except subprocess.TimeoutExpired:
+        child.popen.kill()
+        child.popen.wait()

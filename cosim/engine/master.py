@@ -1,0 +1,291 @@
+"""The lockstep master: integer ticks, multi-rate periods, Gauss-Seidel order.
+
+Time is an integer tick k and t = t0 + k * tick (never accumulated). A
+component with a period of n ticks steps at k = n, 2n, ...; at k = 0 every
+component starts (initialization phase, same order). Between its steps a
+component's outputs are held (zero-order hold) in the signal store
+(`cosim.engine.signals`). A component without direct feedthrough (an FMU) steps
+from t_{k-n} to t_k with its inputs as they stand at the start of tick k,
+i.e. the values of tick k-1 (for n = 1: the implicit one-tick delay of the
+feedback edge). After every call the outputs are checked: a missing signal,
+a wrong size or a non-finite value stops the run with a `ComponentFailure`
+naming the component, the tick, the signal and the value.
+
+Observers (recorder, progress bar, live publisher, real-time pacer) see the
+signal store (`values` list of scalars, `arrays` numpy buffer, indexed by
+`master.layout`) after every tick; they must not modify it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from math import isfinite as _isfinite
+from typing import Any, Protocol
+
+import numpy as np
+
+from cosim.errors import ComponentFailure
+from cosim.engine.hosting import HostedComponent
+from cosim.engine.schedule import step_order
+from cosim.engine.signals import ComponentSlots, SignalLayout, build_layout
+from cosim.engine.values import picker, value_problem
+
+
+class Observer(Protocol):
+    """Something that watches the run tick by tick."""
+
+    def begin(self, master: "Master") -> None:
+        """Called once before the initialization phase."""
+
+    def after_tick(self, tick: int, t: float, values: list[float], arrays: np.ndarray) -> None:
+        """Called after tick `tick` (0 = after initialization); read-only store."""
+
+
+@dataclass
+class _Plan:
+    """Everything the loop needs for one component, precomputed."""
+
+    name: str
+    hosted: HostedComponent
+    period: int
+    slots: ComponentSlots
+    pick_inputs: Callable[[Any], tuple]   # values list -> scalar inputs in name order
+    pick_outputs: Callable[[Any], tuple]  # outputs mapping -> scalar outputs in slot order
+    out_start: int
+    out_stop: int
+
+    def __post_init__(self) -> None:
+        self.step = self.hosted.step
+        self.in_names = self.slots.in_scalar_names
+        self.has_array_inputs = bool(self.slots.in_arrays)
+        self.has_array_outputs = bool(self.slots.out_arrays)
+
+
+class Master:
+    """Drives hosted components in lockstep over the signal store.
+
+    Args:
+        components: name -> HostedComponent, in declaration order.
+        edges: resolved connections (src, src_port, dst, dst_port, delay).
+        tick: base step in seconds (> 0).
+        total_ticks: number of ticks after the initialization phase.
+        t0: start time.
+        observers: called after every tick (see Observer).
+        trace: when True, `self.trace` lists (tick, component, inputs copy)
+            for every start and step, for tests.
+    """
+
+    def __init__(self, components: Mapping[str, HostedComponent], edges: Iterable[Any],
+                 tick: float, total_ticks: int, t0: float = 0.0,
+                 observers: Sequence[Observer] = (), trace: bool = False) -> None:
+        edges = list(edges)
+        self.components = dict(components)
+        self.tick = float(tick)
+        self.total_ticks = int(total_ticks)
+        self.t0 = float(t0)
+        self.observers = list(observers)
+        self.trace: list[tuple[int, str, dict[str, Any]]] | None = [] if trace else None
+        self.layout: SignalLayout = build_layout(self.components, edges)
+        feedthrough = {n: bool(getattr(c, "direct_feedthrough", True))
+                       for n, c in self.components.items()}
+        self.order = step_order(list(self.components), feedthrough, edges)
+        self.values: list[float] = list(self.layout.initial_values)
+        self.arrays: np.ndarray = self.layout.initial_arrays.copy()
+        # read-only array objects by offset in `arrays`, handed to readers without a
+        # copy: a new object is made each time the owner writes, never mutated
+        self._frozen: dict[int, np.ndarray] = {}
+        self.ticks_done = -1  # last completed tick; -1 before initialization
+        self._plans = [self._plan(name) for name in self.order]
+        self._scalar_delays = self.layout.scalar_delays
+        self._array_delays = self.layout.array_delays
+        self._has_delays = bool(self._scalar_delays or self._array_delays)
+        self._due = _due_table(self._plans)
+        self._started: list[str] = []  # components whose start was called, to stop
+
+    def _plan(self, name: str) -> _Plan:
+        comp = self.components[name]
+        period = int(comp.period_ticks)
+        if period < 1:
+            raise ValueError(f"component {name!r}: period_ticks must be >= 1, got {period}")
+        slots = self.layout.slots[name]
+        start = slots.out_scalar_start
+        return _Plan(name, comp, period, slots, picker(slots.in_scalar_index),
+                     picker(slots.out_scalar_names), start,
+                     start + len(slots.out_scalar_names))
+
+    def value(self, component: str, signal: str) -> Any:
+        """Current value of an output signal (float, or a copy of the array)."""
+        offset, size = self.layout.outputs[(component, signal)]
+        if size == 1:
+            return self.values[offset]
+        return self.arrays[offset:offset + size].copy()
+
+    def time_of(self, tick: int) -> float:
+        """t = t0 + tick * h, computed from the integer tick."""
+        return self.t0 + tick * self.tick
+
+    def run(self, after_initialize: Callable[[], None] | None = None) -> None:
+        """Initialize, then run every tick up to total_ticks.
+
+        Args:
+            after_initialize: called once when tick 0 (the initialization phase)
+                is complete, e.g. to time the start-up.
+        """
+        self.initialize()
+        if after_initialize is not None:
+            after_initialize()
+        for k in range(1, self.total_ticks + 1):
+            self.step_tick(k)
+
+    def initialize(self) -> None:
+        """Initialization phase at t0: start every component in step order."""
+        for observer in self.observers:
+            observer.begin(self)
+        t0 = self.t0
+        for plan in self._plans:
+            inputs = self._gather(plan)
+            if self.trace is not None:
+                self.trace.append((0, plan.name, _copy_inputs(inputs)))
+            self._started.append(plan.name)
+            self._scatter(plan, plan.hosted.start(t0, inputs), None, t0)
+        self._finish_tick(0, t0)
+
+    def step_tick(self, k: int) -> None:
+        """Run tick k: refresh delayed inputs, step the due components in order.
+
+        This is the hot loop: gather and the scalar part of scatter are inlined.
+        """
+        t = self.t0 + k * self.tick
+        if self._has_delays:
+            self._refresh_delays()
+        values = self.values
+        due = self._due
+        plans = (due[k % len(due)] if due is not None
+                 else [p for p in self._plans if k % p.period == 0])
+        for plan in plans:
+            inputs = dict(zip(plan.in_names, plan.pick_inputs(values)))
+            if plan.has_array_inputs:
+                self._gather_arrays(plan, inputs)
+            if self.trace is not None:
+                self.trace.append((k, plan.name, _copy_inputs(inputs)))
+            outputs = plan.step(k, t, inputs)
+            try:
+                new = list(map(float, plan.pick_outputs(outputs)))
+            except Exception:  # missing name, not a mapping, not a number: diagnose
+                raise _diagnose(plan, outputs, k, t) from None
+            if not all(map(_isfinite, new)):
+                raise _diagnose(plan, outputs, k, t)
+            values[plan.out_start:plan.out_stop] = new
+            if plan.has_array_outputs:
+                self._scatter_arrays(plan, outputs, k, t)
+        self.ticks_done = k
+        for observer in self.observers:
+            observer.after_tick(k, t, values, self.arrays)
+
+    def _refresh_delays(self) -> None:
+        values, arrays = self.values, self.arrays
+        for src, dst in self._scalar_delays:
+            values[dst] = values[src]
+        for src, dst, size in self._array_delays:
+            arrays[dst:dst + size] = arrays[src:src + size]
+            self._frozen.pop(dst, None)
+
+    def _finish_tick(self, k: int, t: float) -> None:
+        self.ticks_done = k
+        for observer in self.observers:
+            observer.after_tick(k, t, self.values, self.arrays)
+
+    def _gather(self, plan: _Plan) -> dict[str, Any]:
+        """The inputs of one component as a fresh mapping (floats, read-only arrays)."""
+        inputs: dict[str, Any] = dict(zip(plan.in_names, plan.pick_inputs(self.values)))
+        self._gather_arrays(plan, inputs)
+        return inputs
+
+    def _gather_arrays(self, plan: _Plan, inputs: dict[str, Any]) -> None:
+        frozen = self._frozen
+        for name, off, size in plan.slots.in_arrays:
+            value = frozen.get(off)
+            if value is None:  # a default or delay slot nobody has written yet
+                value = frozen[off] = _freeze(self.arrays[off:off + size])
+            inputs[name] = value
+
+    def _scatter(self, plan: _Plan, outputs: Any, k: int | None, t: float) -> None:
+        """Check a component's outputs and write them into the store."""
+        try:
+            values = list(map(float, plan.pick_outputs(outputs)))
+        except Exception:  # missing name, not a mapping, not a number: diagnose
+            raise _diagnose(plan, outputs, k, t) from None
+        if not all(map(_isfinite, values)):
+            raise _diagnose(plan, outputs, k, t)
+        self.values[plan.out_start:plan.out_stop] = values
+        self._scatter_arrays(plan, outputs, k, t)
+
+    def _scatter_arrays(self, plan: _Plan, outputs: Any, k: int | None, t: float) -> None:
+        for name, off, size in plan.slots.out_arrays:
+            try:
+                array = _freeze(outputs[name])
+            except Exception:
+                raise _diagnose(plan, outputs, k, t) from None
+            if array.shape != (size,) or not np.isfinite(array).all():
+                raise _diagnose(plan, outputs, k, t)
+            self.arrays[off:off + size] = array
+            self._frozen[off] = array
+
+    def stop_all(self) -> tuple[dict[str, dict[str, float]], list[str]]:
+        """Stop every started component (reverse step order), even after a failure.
+
+        Returns:
+            (metrics by component, error messages of components whose stop failed).
+        """
+        metrics: dict[str, dict[str, float]] = {}
+        errors: list[str] = []
+        started = set(self._started)
+        for plan in reversed(self._plans):
+            if plan.name not in started:
+                continue
+            try:
+                metrics[plan.name] = dict(plan.hosted.stop() or {})
+            except Exception as exc:  # keep stopping the others
+                errors.append(str(exc) if isinstance(exc, ComponentFailure)
+                              else f"component {plan.name!r}: stop failed: {exc}")
+        return metrics, errors
+
+
+def _due_table(plans: Sequence[_Plan], limit: int = 4096) -> list[list[_Plan]] | None:
+    """Plans due at each tick residue modulo the periods' lcm (in step order).
+
+    None when the lcm exceeds `limit` (the loop then filters by period each tick).
+    """
+    cycle = math.lcm(*(p.period for p in plans)) if plans else 1
+    if cycle > limit:
+        return None
+    return [[p for p in plans if r % p.period == 0] for r in range(cycle)]
+
+
+def _freeze(value: Any) -> np.ndarray:
+    """A read-only float64 copy of `value`."""
+    array = np.array(value, dtype=np.float64)
+    array.flags.writeable = False
+    return array
+
+
+def _copy_inputs(inputs: Mapping[str, Any]) -> dict[str, Any]:
+    return {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in inputs.items()}
+
+
+def _diagnose(plan: _Plan, outputs: Any, k: int | None, t: float) -> ComponentFailure:
+    """The precise reason a component's outputs were rejected."""
+    if not isinstance(outputs, Mapping):
+        return ComponentFailure(plan.name, k, t, f"returned {type(outputs).__name__}, "
+                                f"expected a mapping of output signals")
+    ports = [(n, 1) for n in plan.slots.out_scalar_names]
+    ports += [(n, size) for n, _, size in plan.slots.out_arrays]
+    for name, size in ports:
+        if name not in outputs:
+            return ComponentFailure(plan.name, k, t, f"output {name!r} missing")
+        problem = value_problem(outputs[name], size)
+        if problem:
+            return ComponentFailure(plan.name, k, t, f"output {name!r} {problem}")
+    return ComponentFailure(plan.name, k, t, "invalid outputs")  # pragma: no cover

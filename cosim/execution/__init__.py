@@ -1,0 +1,2 @@
+"""Assembling and executing runs: prepare, start, execute, abort, validate without running, pre-started processes, progress, sweeps.
+"""

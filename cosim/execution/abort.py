@@ -1,0 +1,89 @@
+"""The manifest of a run that ended before tick 0.
+
+Once `cosim run` has announced a run folder, the folder must say what became of
+the run even when it never reached tick 0 (a component that rejects its
+parameters, a wiring typo, Ctrl-C during start-up): `write_start_failure`
+leaves a readable manifest.json with status "failed" and the error, and replaces
+a half-written manifest.json.tmp. `locate_parameter_problem` gives a parameter
+that a component's constructor rejected its YAML file, line and path.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from cosim.errors import UserError
+
+INTERRUPTED_BEFORE_TICK0 = "interrupted before tick 0"
+
+
+def start_failure_text(exc: BaseException) -> str:
+    """The manifest's error for an exception raised before tick 0.
+
+    Args:
+        exc: a UserError or KeyboardInterrupt (anything else is an internal error).
+    """
+    if isinstance(exc, KeyboardInterrupt):
+        return INTERRUPTED_BEFORE_TICK0 + (f" ({exc})" if str(exc) else "")
+    if isinstance(exc, UserError):
+        return str(exc)
+    return f"internal error: {type(exc).__name__}: {exc}"
+
+
+def write_start_failure(out: Path, scenario: Any, run_id: str, transport: str,
+                        error: str, startup: dict[str, Any]) -> None:
+    """Write out/manifest.json for a run that failed before tick 0, unless the run
+    wrote its own complete manifest already.
+
+    Args:
+        out: the run folder (exists).
+        scenario: the scenario as it was to run.
+        run_id: the run's id.
+        transport: "inproc" or "zenoh".
+        error: the error text (see start_failure_text).
+        startup: the start-up clock's marks (StartupClock.as_dict()).
+    """
+    from cosim.results.manifest import run_identity
+    from cosim.results.recorder import write_json
+
+    manifest_path = out / "manifest.json"
+    if _final_status(manifest_path) is not None:
+        return
+    write_json(manifest_path, {
+        **run_identity(scenario, run_id, transport, "failed", error, "failed_utc"),
+        "ticks": 0,
+        "sim_time_s": 0.0,
+        "time_to_tick0_s": None,
+        "startup": startup,
+    })
+
+
+def _final_status(manifest_path: Path) -> str | None:
+    """The status of a finished run's manifest; None if absent, unreadable or "running"."""
+    import json
+
+    try:
+        status = json.loads(manifest_path.read_text(encoding="utf-8")).get("status")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return None if status == "running" else status
+
+
+def locate_parameter_problem(scenario: Any, exc: BaseException) -> UserError | None:
+    """A component's rejected parameter (cosim.transport.inproc.ParameterProblem) as a
+    UserError starting with the parameter's YAML file, line and path; None for
+    any other exception.
+
+    Args:
+        scenario: the scenario being run.
+        exc: what starting the components raised.
+    """
+    component, parameter = getattr(exc, "component", None), getattr(exc, "parameter", None)
+    if not isinstance(exc, UserError) or parameter is None:
+        return None
+    spec = scenario.components.get(component)
+    if spec is None or parameter not in (getattr(spec, "parameters", None) or {}):
+        return None
+    return UserError(f"{scenario.where(('components', component, 'parameters', parameter))}: "
+                     f"{exc.problem}")  # type: ignore[attr-defined]

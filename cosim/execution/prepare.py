@@ -1,0 +1,137 @@
+"""Everything checked before any component of a run starts.
+
+`prepare_run` resolves and checks the scenario's components without starting
+anything: FMUs built (the built-in ones) and described, their parameters
+checked, Python classes imported, periods in ticks, placement resolved.
+`cosim.execution.run` starts and executes what this prepares, and
+`cosim.execution.validate` stops after it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from cosim.errors import UserError
+from cosim.transport.launch import PythonComponentLaunch
+
+
+@dataclass
+class FmuPlan:
+    """One FMU component, resolved and checked."""
+
+    name: str
+    path: Path
+    interface: Any
+    parameters: dict[str, float]
+    period_ticks: int
+
+
+@dataclass
+class PreparedRun:
+    """Everything checked before any component starts.
+
+    Attributes:
+        fmus: the FMU components in file order.
+        launches: the Python components (sources included) in file order.
+        names: every component name in declaration order (components, then sources).
+    """
+
+    scenario: Any
+    fmus: list[FmuPlan]
+    launches: list[PythonComponentLaunch]
+    names: list[str]
+    placement: dict[str, str] = field(default_factory=dict)
+    deploy: Any = None
+
+
+def prepare_run(scenario: Any) -> PreparedRun:
+    """Resolve FMUs and Python classes and check them, without starting anything.
+
+    Args:
+        scenario: a validated `cosim.scenario.loader.Scenario`.
+    Raises:
+        UserError (FmuInterfaceError, ScenarioError, ...) naming the component.
+    """
+    _check_hosts(scenario)
+    fmus = plan_fmus(scenario)
+    return PreparedRun(scenario, fmus, plan_launches(scenario), component_names(scenario))
+
+
+def plan_launches(scenario: Any, import_classes: bool = True) -> list[PythonComponentLaunch]:
+    """The Python components (sources included) to launch, in file order.
+
+    Args:
+        scenario: a validated `cosim.scenario.loader.Scenario`.
+        import_classes: import every class here (checks it early). When False,
+            only the classes whose period the scenario leaves to the class's
+            `default_period` are imported; a component process then reports a
+            missing or bad class in its handshake, with the same message.
+    Raises:
+        UserError naming the component (class, period).
+    """
+    launches = []
+    for name, spec in scenario.python_components().items():
+        default = None
+        # sources are the platform's own classes, which declare no default period
+        if import_classes or (spec.period is None and name not in scenario.sources):
+            from cosim.transport.inproc import import_component_class
+
+            cls = import_component_class(spec.python, name)
+            default = getattr(cls, "default_period", None)
+        period = scenario.period_ticks(name, default)
+        launches.append(PythonComponentLaunch(name, spec.python, dict(spec.parameters), period))
+    return launches
+
+
+def plan_fmus(scenario: Any) -> list[FmuPlan]:
+    """The FMU components, built if needed, described and parameter-checked.
+
+    Args:
+        scenario: a validated `cosim.scenario.loader.Scenario`.
+    """
+    return [plan_fmu(scenario, name, spec) for name, spec in scenario.fmu_components().items()]
+
+
+def component_names(scenario: Any) -> list[str]:
+    """Every component name in declaration order (components, then sources)."""
+    return [*scenario.components, *scenario.sources]
+
+
+def plan_fmu(scenario: Any, name: str, spec: Any) -> FmuPlan:
+    from cosim.fmu.interface import check_parameters, describe_fmu
+
+    where = scenario.resolve_fmu_path(spec)
+    if isinstance(where, str):
+        from cosim.fmu.build import FmuBuildError, ensure_fmu
+
+        try:
+            path = Path(ensure_fmu(where))
+        except FmuBuildError as exc:
+            raise UserError(f"{scenario.where(('components', name, 'fmu'))}: cannot build "
+                            f"the built-in FMU {where!r}: {exc}") from exc
+    else:
+        path = Path(where)
+    origin = scenario.where(("components", name, "variables"))
+    interface = describe_fmu(path, dict(spec.variables), origin=origin)
+    parameters = scenario.plant_parameters(name, _start_values(interface))
+    check_parameters(interface, parameters, name, scenario=scenario)
+    return FmuPlan(name, path, interface, parameters, scenario.period_ticks(name))
+
+
+def _start_values(interface: Any) -> dict[str, float]:
+    """Parameter start values of an FMU interface (name -> float)."""
+    starts = {}
+    for key, value in dict(getattr(interface, "parameters", {}) or {}).items():
+        start = getattr(value, "start", value)
+        with contextlib.suppress(TypeError, ValueError):
+            starts[str(key)] = float(start)
+    return starts
+
+
+def _check_hosts(scenario: Any) -> None:
+    from cosim.distributed.placement import resolve_placement
+
+    resolve_placement(scenario)  # unknown worker names and FMUs on workers fail here

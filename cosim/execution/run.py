@@ -1,0 +1,360 @@
+"""Execute one run of a scenario.
+
+`cosim.execution.prepare` resolves and checks everything that can be checked
+before any component starts; `run_scenario` starts the hosts (FMUs in-process
+via fmpy; Python components in-process or as Zenoh processes), resolves the
+wiring from the hosted ports, runs the master with the recorder (plus progress
+bar, real-time pacer and live publisher) and writes the run folder:
+signals.csv, arrays/, manifest.json (with the start-up marks and
+`time_to_tick0_s`), metrics.json.
+
+This module loads numpy, fmpy and the component classes only where they are
+needed, after the Zenoh component processes have been spawned: their start-up
+then overlaps the master's (see `run_scenario`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+import uuid
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from cosim.errors import UserError
+from cosim.transport.launch import PythonComponentLaunch
+from cosim.execution.abort import locate_parameter_problem, start_failure_text, write_start_failure
+from cosim.execution.prepare import PreparedRun, component_names, plan_fmu, plan_fmus, plan_launches
+from cosim.engine.startup import StartupClock
+
+if TYPE_CHECKING:  # loaded when needed: the Zenoh processes start before numpy/fmpy load
+    from cosim.engine.master import Master
+    from cosim.results.recorder import Recorder
+
+TRANSPORTS = ("inproc", "zenoh")
+DEFAULT_DEADLINE_S = 10.0
+
+
+@dataclass
+class RunResult:
+    """What a run produced (paths, status, timings, metrics)."""
+
+    out_dir: Path
+    status: str
+    error: str | None
+    ticks: int
+    sim_time_s: float
+    wall_time_s: float
+    real_time_factor: float
+    metrics: dict[str, float] = field(default_factory=dict)  # "component.metric" -> value
+    realtime: dict[str, Any] | None = None
+    time_to_tick0_s: float | None = None  # from the clock's origin; None: tick 0 not reached
+    startup: dict[str, Any] = field(default_factory=dict)  # StartupClock marks and origin
+    live: dict[str, Any] | None = None  # {"run_id", "endpoint"} of the live view (zenoh)
+
+    @property
+    def signals(self) -> Path:
+        """The run's signals.csv."""
+        return self.out_dir / "signals.csv"
+
+    @property
+    def manifest(self) -> Path:
+        """The run's manifest.json."""
+        return self.out_dir / "manifest.json"
+
+
+def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
+                 realtime: float | None = None, progress: bool = True,
+                 deadline_s: float = DEFAULT_DEADLINE_S, place: Sequence[str] = (),
+                 deploy: Any = None, clock: StartupClock | None = None,
+                 on_live: Callable[[str, str], None] | None = None,
+                 prestart: Any = None,
+                 on_folder: Callable[[Path], None] | None = None) -> RunResult:
+    """Run a scenario and write its run folder.
+
+    Start-up is ordered so that tick 0 comes early: the component processes
+    (zenoh) are spawned first, the FMUs are built, described and loaded while
+    they start, and only then does the master wait for their handshakes.
+
+    Args:
+        scenario: a validated `cosim.scenario.loader.Scenario` (overrides applied).
+        out_dir: the run folder (created; files in it are overwritten).
+        transport: "inproc" or "zenoh" (Python components as OS processes).
+        realtime: pace to wall clock at this factor (1.0 = real time); None: as fast as possible.
+        progress: draw a progress bar (on stderr).
+        deadline_s: per-tick deadline of remote components (zenoh).
+        place: `--place COMPONENT=WORKER` values (override the scenario's `host:`).
+        deploy: cosim.distributed.deploy.DeploySettings (endpoints, TLS, ACL), or None.
+        clock: start-up clock whose marks go into the manifest (`cosim run`
+            passes one that starts with the process); None: starts now.
+        on_live: called with (run_id, endpoint) as soon as the run can be
+            watched live (zenoh transport only), before tick 0.
+        prestart: a `cosim.execution.prestart.Prestart` (component processes started
+            while the scenario loaded): used for a local zenoh run, ended
+            otherwise; always closed before returning.
+        on_folder: called with the run folder once it is created (after the
+            checks that need no component running); from then on a run that
+            fails before tick 0 leaves a manifest.json with status "failed".
+    Returns:
+        RunResult; status "failed" with the error message when a component
+        failed mid-run (the folder then holds everything up to the last tick).
+    Raises:
+        UserError for anything wrong before tick 0 (scenario, FMU, wiring).
+    """
+    check_run_options(transport, realtime)
+    clock = clock or StartupClock.from_now()
+    with contextlib.ExitStack() as stack:
+        if prestart is not None:
+            stack.callback(prestart.close)
+        placement = _placement(scenario, place, transport)
+        prestart = _usable_prestart(prestart, transport, placement, deploy)
+        launches = plan_launches(scenario, import_classes=transport != "zenoh")
+        launches += _placed_fmu_launches(scenario, placement)
+        out = _make_run_folder(Path(out_dir))
+        run_id = prestart.run_id if prestart is not None else uuid.uuid4().hex[:12]
+        try:
+            if on_folder is not None:
+                on_folder(out)
+            remote = None
+            if transport == "zenoh":  # spawned before the FMUs load: their start-ups overlap
+                remote = _spawn_remote(launches, run_id, deadline_s, placement, deploy, stack,
+                                       prestart, clock, on_live)
+            local_fmus = [p for p in plan_fmus(scenario) if p.name not in placement]
+            prepared = PreparedRun(scenario, local_fmus, launches, component_names(scenario),
+                                   placement, deploy)
+            hosted = _host_components(prepared, remote, clock)
+            return _execute(prepared, hosted, remote, out, transport, run_id, realtime,
+                            progress, clock)
+        except BaseException as exc:  # the announced folder says why the run never started
+            located = locate_parameter_problem(scenario, exc)
+            write_start_failure(out, scenario, run_id, transport,
+                                start_failure_text(located or exc), clock.as_dict())
+            if located is not None:
+                raise located from None
+            raise
+
+
+def _make_run_folder(out: Path) -> Path:
+    """Create the run folder; one that cannot be made (a file there, no permission) is a UserError."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot create the run folder {str(out)!r}: "
+                        f"{exc.strerror or exc}") from None
+    return out
+
+
+def check_run_options(transport: str, realtime: float | None) -> None:
+    """Reject an unknown transport or a non-positive real-time factor (UserError).
+
+    Args:
+        transport: the `--transport` value.
+        realtime: the `--realtime` factor, or None.
+    """
+    if transport not in TRANSPORTS:
+        raise UserError(f"unknown transport {transport!r} (choose from {', '.join(TRANSPORTS)})")
+    if realtime is not None and not realtime > 0:
+        raise UserError(f"--realtime factor must be > 0, got {realtime!r}")
+
+
+def _placement(scenario: Any, place: Sequence[str], transport: str) -> dict[str, str]:
+    """Component -> worker from `host:` and `--place`; placing anything needs zenoh."""
+    from cosim.distributed.placement import resolve_placement
+
+    placement = resolve_placement(scenario, place)
+    if placement and transport != "zenoh":
+        raise UserError("components placed on workers need --transport zenoh: "
+                        + ", ".join(f"{c} on {w!r}" for c, w in placement.items()))
+    return placement
+
+
+def _usable_prestart(prestart: Any, transport: str, placement: dict[str, str],
+                     deploy: Any) -> Any:
+    """The prestarted processes if this run can use them (a local zenoh run), else None.
+
+    Prestarted processes that this run cannot use are ended at once, to free the CPU.
+    """
+    if prestart is not None and (transport != "zenoh" or placement or deploy is not None):
+        prestart.close()
+        return None
+    return prestart
+
+
+def _placed_fmu_launches(scenario: Any, placement: dict[str, str]) -> list[PythonComponentLaunch]:
+    """FMU components placed on workers, as launches of the remote FMU host."""
+    specs = scenario.fmu_components()
+    if not set(specs) & set(placement):
+        return []  # and no import: numpy must not load before the processes are spawned
+    from cosim.fmu.remote import fmu_launch
+
+    plans = [plan_fmu(scenario, name, spec) for name, spec in specs.items() if name in placement]
+    return [fmu_launch(p.name, p.path, dict(specs[p.name].variables), p.parameters,
+                       p.period_ticks) for p in plans]
+
+
+def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s: float,
+                  placement: dict[str, str], deploy: Any, stack: contextlib.ExitStack,
+                  prestart: Any, clock: StartupClock,
+                  on_live: Callable[[str, str], None] | None) -> Any:
+    """Start the component processes (without waiting for them); closed with `stack`.
+
+    Marks "spawned" on `clock`, then tells `on_live` where the run can be watched.
+    """
+    try:
+        from cosim.transport.zenoh import ZenohComponents
+    except ImportError as exc:
+        raise UserError(f"the zenoh transport is not available ({exc}); "
+                        "use --transport inproc") from exc
+    if placement or deploy is not None:
+        from cosim.distributed.client import DistributedComponents
+
+        remote = DistributedComponents(launches, run_id, deadline_s, placement=placement,
+                                       settings=deploy)
+    elif prestart is not None:
+        remote = ZenohComponents(launches, run_id, deadline_s, prestart.endpoint,
+                                 prestarted=prestart.children)
+    else:
+        remote = ZenohComponents(launches, run_id, deadline_s)
+    stack.callback(remote.close)
+    remote.spawn()
+    clock.mark("spawned")
+    if on_live is not None:
+        on_live(run_id, remote.endpoint)
+    return remote
+
+
+def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock) -> dict[str, Any]:
+    """Host every component; name -> HostedComponent in declaration order."""
+    from cosim.fmu.host import FmuComponent
+
+    hosted: dict[str, Any] = {}
+    for plan in prepared.fmus:
+        hosted[plan.name] = FmuComponent(plan.name, plan.path, plan.interface,
+                                         plan.parameters, plan.period_ticks)
+    clock.mark("fmus_ready")
+    if remote is not None:
+        _preload()
+        hosted.update(remote.wait_ready())
+    else:
+        from cosim.transport.inproc import InprocComponent
+
+        hosted.update({l.name: InprocComponent(l) for l in prepared.launches})
+    clock.mark("components_ready")
+    return {name: hosted[name] for name in prepared.names}
+
+
+def _preload() -> None:
+    """Load what the run needs after the handshake, while the processes still start."""
+    import cosim.engine.master  # noqa: F401
+    import cosim.results.recorder  # noqa: F401
+    import cosim.engine.wiring  # noqa: F401
+    from cosim.results.manifest import package_versions
+
+    package_versions()
+
+
+class _LivePublisher:
+    """Master observer publishing the scalar signal vector of every tick (zenoh
+    transport), building the vector only while a watcher listens."""
+
+    def __init__(self, live: Any) -> None:
+        self.live = live  # cosim.transport.zenoh.live.LivePublisher
+
+    def begin(self, master: Master) -> None:
+        import numpy as np
+
+        columns = master.layout.scalar_columns()
+        self.names = [n for n, _ in columns]
+        self.index = [i for _, i in columns]
+        self.vector = lambda values: np.array([values[i] for i in self.index], dtype=np.float64)
+
+    def after_tick(self, tick: int, t: float, values: list[float], arrays: Any) -> None:
+        if self.live.matching:  # a plain attribute: nobody listening costs one test
+            self.live.publish(tick, t, self.names, self.vector(values))
+
+
+def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Path,
+             transport: str, run_id: str, realtime: float | None, progress: bool,
+             clock: StartupClock) -> RunResult:
+    """Run the master over the hosted components and write the run folder."""
+    from cosim.results.manifest import base_manifest, finish_manifest
+    from cosim.results.recorder import write_json
+
+    scenario = prepared.scenario
+    master, recorder, pacer, bar = _build_master(scenario, hosted, remote, out,
+                                                 realtime, progress)
+    manifest = base_manifest(scenario, prepared, hosted, transport, run_id, master.order)
+    live = None
+    if remote is not None:  # where a watcher connects to see the run live
+        live = {"run_id": run_id, "endpoint": remote.endpoint}
+        manifest["live"] = live
+        manifest["startup_processes_s"] = dict(getattr(remote, "process_startup_s", {}))
+    manifest["hosts"].update(getattr(remote, "hosts", {}))
+    manifest["startup"] = clock.as_dict()
+    write_json(out / "manifest.json", manifest)
+    failure: BaseException | None = None
+    started = time.perf_counter()
+    try:
+        master.run(after_initialize=lambda: clock.mark("tick0"))
+    except BaseException as exc:  # recorded below; bugs are re-raised after the files
+        failure = exc
+    finally:
+        wall = time.perf_counter() - started
+        recorder.close()
+        if bar is not None:
+            bar.close()
+        by_component, stop_errors = master.stop_all()
+        metrics = {f"{c}.{k}": v for c in master.order if c in by_component
+                   for k, v in sorted(by_component[c].items())}
+        write_json(out / "metrics.json", metrics)
+    errors = ([_failure_text(failure)] if failure is not None else []) + stop_errors
+    ticks = max(master.ticks_done, 0)
+    result = RunResult(out, "failed" if errors else "ok", "; ".join(errors) or None, ticks,
+                       ticks * scenario.tick, wall,
+                       (ticks * scenario.tick / wall) if wall > 0 else float("inf"),
+                       metrics, pacer.stats() if pacer else None,
+                       clock.marks.get("tick0"), clock.as_dict(), live)
+    write_json(out / "manifest.json", finish_manifest(manifest, result))
+    if failure is not None and not isinstance(failure, (UserError, KeyboardInterrupt)):
+        raise failure
+    return result
+
+
+def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
+                  realtime: float | None, progress: bool) -> tuple[Master, Recorder, Any, Any]:
+    """Wire the hosted components and attach the observers."""
+    from cosim.fmu.host import FmuComponent
+    from cosim.engine.master import Master
+    from cosim.results.recorder import Recorder
+    from cosim.engine.wiring import resolve_wiring
+
+    unsupported = {n: c.interface.unsupported for n, c in hosted.items()
+                   if isinstance(c, FmuComponent)}
+    edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()},
+                           unsupported)
+    recorder = Recorder(out, scenario.record.include, scenario.record.exclude)
+    pacer = bar = None
+    if realtime is not None:
+        from cosim.engine.pacing import RealtimePacer
+
+        pacer = RealtimePacer(realtime, scenario.tick)
+    if progress:
+        from cosim.execution.progress import ProgressBar
+
+        bar = ProgressBar(scenario.total_ticks, scenario.tick)
+    observers: list[Any] = [o for o in (recorder, pacer, bar) if o is not None]
+    if getattr(remote, "live", None) is not None:
+        observers.append(_LivePublisher(remote.live))
+    master = Master(hosted, edges, scenario.tick, scenario.total_ticks,
+                    scenario.start_time, observers)
+    return master, recorder, pacer, bar
+
+
+def _failure_text(exc: BaseException) -> str:
+    if isinstance(exc, UserError):
+        return str(exc)
+    if isinstance(exc, KeyboardInterrupt):
+        return f"interrupted: {exc}" if str(exc) else "interrupted by the user (Ctrl-C)"
+    return f"internal error: {type(exc).__name__}: {exc}"

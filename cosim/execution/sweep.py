@@ -1,0 +1,328 @@
+"""Monte-Carlo sweeps of a scenario on Dask: sample parameters, run, summarize metrics.
+
+`run_sweep` draws `samples` points over the given ranges (`PATH=LOW:HIGH`,
+PATH as in `cosim run --set`), seeded and deterministic: Latin hypercube by
+default (each range cut in `samples` equal strata, one point per stratum, in
+a random order per dimension), or plain uniform. Each point is a full run
+(`cosim.execution.run.run_scenario` with the overrides) executed as one Dask task, on a
+`distributed.LocalCluster` by default or on the cluster whose scheduler
+address is given. Results, in sample order whatever order the tasks finish:
+
+    OUT/samples.csv     sample, the varied values, status, every metric, error
+    OUT/summary.csv     per metric: n, mean, std, min, p5, p50, p95, max
+    OUT/summary.md      the same as a Markdown table
+    OUT/sweep.json      the sweep's settings
+    OUT/samples/sample_NNNN/   each sample's run folder
+
+A sample whose run fails (a user error before tick 0, a component failure
+mid-run, a lost worker) is kept in samples.csv with status "failed" and the
+reason; the summary uses the samples that finished. std is the sample
+standard deviation (ddof = 1; 0 for a single value); percentiles interpolate
+linearly between order statistics (numpy's default).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import logging
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cosim.analysis.rundata import AnalysisError
+
+STATS = ("n", "mean", "std", "min", "p5", "p50", "p95", "max")
+METHODS = ("lhs", "uniform")
+RunFunction = Callable[[Path, Sequence[str], Path, str], dict[str, float]]
+
+
+@dataclass(frozen=True)
+class Vary:
+    """One varied scenario value: PATH sampled in [low, high]."""
+
+    path: str
+    low: float
+    high: float
+
+
+def parse_vary(text: str) -> Vary:
+    """Parse "PATH=LOW:HIGH" (e.g. "components.vehicle.uncertainty.m.scale=0.7:1.3").
+
+    Raises:
+        AnalysisError: the text is malformed, a bound is not a finite number, or LOW > HIGH.
+    """
+    path, sep, bounds = text.partition("=")
+    low_text, colon, high_text = bounds.partition(":")
+    if not sep or not colon or not path.strip():
+        raise AnalysisError(f"--vary {text!r}: expected PATH=LOW:HIGH")
+    try:
+        low, high = float(low_text), float(high_text)
+    except ValueError:
+        raise AnalysisError(f"--vary {text!r}: LOW and HIGH must be numbers") from None
+    if not (np.isfinite(low) and np.isfinite(high)):
+        raise AnalysisError(f"--vary {text!r}: LOW and HIGH must be finite")
+    if low > high:
+        raise AnalysisError(f"--vary {text!r}: LOW {low:g} is above HIGH {high:g}")
+    return Vary(path.strip(), low, high)
+
+
+def sample_points(varies: Sequence[Vary], samples: int, seed: int,
+                  method: str = "lhs") -> np.ndarray:
+    """The (samples, len(varies)) matrix of sampled values.
+
+    Args:
+        varies: the ranges.
+        samples: number of points (>= 1).
+        seed: seed of numpy's default generator (same seed, same points).
+        method: "lhs" (Latin hypercube) or "uniform".
+    """
+    if samples < 1:
+        raise AnalysisError(f"--samples {samples}: need at least 1")
+    if method not in METHODS:
+        raise AnalysisError(f"--method {method!r}: choose from {', '.join(METHODS)}")
+    rng = np.random.default_rng(seed)
+    dims = len(varies)
+    if method == "lhs":
+        strata = np.column_stack([rng.permutation(samples) for _ in range(dims)])
+        unit = (strata + rng.random((samples, dims))) / samples
+    else:
+        unit = rng.random((samples, dims))
+    low = np.array([v.low for v in varies])
+    high = np.array([v.high for v in varies])
+    return low + unit * (high - low)
+
+
+def format_override(path: str, value: float) -> str:
+    """A `--set` override "PATH=VALUE" whose VALUE YAML reads back as the same float."""
+    text = repr(float(value))
+    if "e" in text and "." not in text:
+        mantissa, exponent = text.split("e")
+        text = f"{mantissa}.0e{exponent}"  # YAML 1.1 needs a dot to read 1e-05 as a float
+    return f"{path}={text}"
+
+
+def summarize(values: Sequence[float]) -> dict[str, float]:
+    """n, mean, std (ddof 1), min, p5, p50, p95, max of the values.
+
+    Args:
+        values: at least one finite number.
+    """
+    v = np.asarray(values, dtype=float)
+    p5, p50, p95 = np.percentile(v, [5, 50, 95])
+    return {"n": float(len(v)), "mean": float(np.mean(v)),
+            "std": float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
+            "min": float(np.min(v)), "p5": float(p5), "p50": float(p50),
+            "p95": float(p95), "max": float(np.max(v))}
+
+
+@dataclass
+class SampleResult:
+    """One sample: its index, varied values, status ("ok"/"failed"), metrics, error."""
+
+    index: int
+    values: list[float]
+    status: str
+    metrics: dict[str, float] = field(default_factory=dict)
+    error: str = ""
+
+
+@dataclass
+class SweepResult:
+    """A finished sweep: settings, per-sample results, per-metric summary, files written."""
+
+    varies: list[Vary]
+    samples: list[SampleResult]
+    summary: dict[str, dict[str, float]]
+    out_dir: Path
+    files: list[Path]
+
+    @property
+    def failures(self) -> list[SampleResult]:
+        """The samples whose run failed."""
+        return [s for s in self.samples if s.status != "ok"]
+
+
+def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: Path,
+                        transport: str) -> dict[str, float]:
+    """Run one sample for real and return its metrics (the default run function).
+
+    Args:
+        scenario_path: the scenario YAML.
+        overrides: "PATH=VALUE" strings, as `cosim run --set`.
+        run_dir: the sample's run folder.
+        transport: "inproc" or "zenoh".
+
+    Raises:
+        UserError: the scenario or the run failed (the message says why).
+    """
+    from cosim.figures.compare import run_metrics
+    from cosim.errors import UserError
+    from cosim.analysis.metrics import write_metrics
+    from cosim.analysis.rundata import load_run
+    from cosim.execution.run import run_scenario
+    from cosim.scenario.loader import load_scenario
+
+    result = run_scenario(load_scenario(scenario_path, list(overrides)), out_dir=run_dir,
+                          transport=transport, progress=False)
+    if result.status != "ok":
+        raise UserError(result.error or f"run ended with status {result.status!r}")
+    write_metrics(run_dir)
+    return run_metrics(load_run(run_dir))
+
+
+def _run_task(run_fn: RunFunction, scenario_path: Path, transport: str, index: int,
+              overrides: list[str], run_dir: Path) -> tuple[str, dict[str, float], str]:
+    """One Dask task: run a sample, turn any failure into a "failed" status and message."""
+    try:
+        return "ok", dict(run_fn(scenario_path, overrides, run_dir, transport)), ""
+    except Exception as exc:  # noqa: BLE001 - one bad sample must not end the sweep
+        return "failed", {}, f"sample {index}: {type(exc).__name__}: {exc}"
+
+
+def _client(scheduler: str | None, workers: int, cluster_options: dict[str, Any] | None):
+    """A Dask client and the local cluster it owns (None when joining a scheduler)."""
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            return Client(scheduler, timeout="10s"), None
+        except (OSError, TimeoutError) as exc:
+            raise AnalysisError(f"--scheduler {scheduler}: cannot connect: {exc}") from None
+    options = {"n_workers": workers, "threads_per_worker": 1, "processes": True,
+               "dashboard_address": None, "silence_logs": logging.ERROR}
+    options.update(cluster_options or {})
+    cluster = LocalCluster(**options)
+    return Client(cluster), cluster
+
+
+def execute_samples(task: Callable[..., tuple[str, dict[str, float], str]],
+                    jobs: Sequence[tuple[int, list[str], Path]], scheduler: str | None,
+                    cluster_options: dict[str, Any] | None) -> list[tuple[str, dict, str]]:
+    """Run the jobs (index, overrides, run_dir) as Dask tasks; results in job order.
+
+    A task lost with its worker (KilledWorker and the like) becomes a failed sample.
+    """
+    workers = max(1, min(len(jobs), os.cpu_count() or 1))
+    client, cluster = _client(scheduler, workers, cluster_options)
+    try:
+        futures = client.map(task, *zip(*jobs), pure=False)
+        results = []
+        for (index, _, _), future in zip(jobs, futures):
+            try:
+                results.append(future.result())
+            except Exception as exc:  # noqa: BLE001 - the worker died, not the run
+                results.append(("failed", {}, f"sample {index}: task lost: "
+                                              f"{type(exc).__name__}: {exc}"))
+        return results
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _metric_names(samples: Sequence[SampleResult]) -> list[str]:
+    """Every metric some sample has, in table order."""
+    from cosim.analysis.metrics import ordered_metric_names
+
+    return ordered_metric_names(set().union(*(s.metrics for s in samples)) if samples else set())
+
+
+def summarize_samples(samples: Sequence[SampleResult]) -> dict[str, dict[str, float]]:
+    """Per metric, the distribution summary over the finished samples (finite values)."""
+    summary = {}
+    for name in _metric_names(samples):
+        values = [s.metrics[name] for s in samples
+                  if s.status == "ok" and name in s.metrics and np.isfinite(s.metrics[name])]
+        if values:
+            summary[name] = summarize(values)
+    return summary
+
+
+def _samples_csv(varies: Sequence[Vary], samples: Sequence[SampleResult]) -> str:
+    names = _metric_names(samples)
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["sample", *(v.path for v in varies), "status", *names, "error"])
+    for s in samples:
+        writer.writerow([s.index, *(repr(x) for x in s.values), s.status,
+                         *(repr(s.metrics[n]) if n in s.metrics else "" for n in names), s.error])
+    return out.getvalue()
+
+
+def _summary_tables(summary: dict[str, dict[str, float]]) -> tuple[str, str]:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["metric", *STATS])
+    md = ["| metric | " + " | ".join(STATS) + " |", "|---|" + "---:|" * len(STATS)]
+    for name, stats in summary.items():
+        writer.writerow([name, *(repr(stats[k]) for k in STATS)])
+        md.append(f"| {name} | {int(stats['n'])} | "
+                  + " | ".join(f"{stats[k]:.4g}" for k in STATS[1:]) + " |")
+    return out.getvalue(), "\n".join(md) + "\n"
+
+
+def write_sweep_files(result: SweepResult, settings: dict[str, Any]) -> list[Path]:
+    """Write samples.csv, summary.csv, summary.md and sweep.json into result.out_dir."""
+    out = result.out_dir
+    summary_csv, summary_md = _summary_tables(result.summary)
+    files = {"samples.csv": _samples_csv(result.varies, result.samples),
+             "summary.csv": summary_csv, "summary.md": summary_md,
+             "sweep.json": json.dumps(settings, indent=2) + "\n"}
+    for name, text in files.items():
+        (out / name).write_text(text)
+    return [out / name for name in files]
+
+
+def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: int,
+              seed: int = 0, scheduler: str | None = None, out_dir: str | Path = "sweep",
+              transport: str = "inproc", method: str = "lhs",
+              run_fn: RunFunction | None = None,
+              cluster_options: dict[str, Any] | None = None,
+              sets: Sequence[str] = ()) -> SweepResult:
+    """Run a Monte-Carlo sweep of a scenario on Dask (see the module docstring).
+
+    Args:
+        scenario_path: the scenario YAML.
+        varies: "PATH=LOW:HIGH" strings (or Vary), at least one, paths distinct.
+        samples: number of sampled runs.
+        seed: sampling seed.
+        scheduler: address of a Dask scheduler ("tcp://host:8786"); None: a LocalCluster.
+        out_dir: the sweep's output folder (created).
+        transport: transport of each run ("inproc" or "zenoh").
+        method: "lhs" or "uniform".
+        run_fn: (scenario_path, overrides, run_dir, transport) -> metrics; default
+            `run_scenario_sample`. Must be picklable for process workers.
+        cluster_options: extra LocalCluster keyword arguments (e.g. processes=False).
+        sets: fixed "PATH=VALUE" overrides applied to every sample before the varied ones.
+    """
+    parsed = [v if isinstance(v, Vary) else parse_vary(v) for v in varies]
+    if not parsed:
+        raise AnalysisError("sweep: give at least one --vary PATH=LOW:HIGH")
+    paths = [v.path for v in parsed]
+    if len(set(paths)) != len(paths):
+        raise AnalysisError(f"sweep: a path is varied twice: {paths}")
+    scenario_path = Path(scenario_path).resolve()
+    if not scenario_path.is_file():
+        raise AnalysisError(f"{scenario_path}: scenario file not found")
+    points = sample_points(parsed, samples, seed, method)
+    out = Path(out_dir)
+    (out / "samples").mkdir(parents=True, exist_ok=True)
+    jobs = [(i, list(sets) + [format_override(v.path, x) for v, x in zip(parsed, row)],
+             (out / "samples" / f"sample_{i:04d}").resolve()) for i, row in enumerate(points)]
+    task = partial(_run_task, run_fn or run_scenario_sample, scenario_path, transport)
+    outcomes = execute_samples(task, jobs, scheduler, cluster_options)
+    results = [SampleResult(i, [float(x) for x in row], status, metrics, error)
+               for (i, row), (status, metrics, error) in zip(enumerate(points), outcomes)]
+    result = SweepResult(parsed, results, summarize_samples(results), out, [])
+    settings = {"scenario": str(scenario_path), "varies": [v.__dict__ for v in parsed],
+                "sets": list(sets), "samples": samples, "seed": seed, "method": method, "transport": transport,
+                "scheduler": scheduler, "failed": len(result.failures)}
+    result.files = write_sweep_files(result, settings)
+    return result

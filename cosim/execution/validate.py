@@ -1,0 +1,71 @@
+"""`cosim validate`: check a scenario as far as possible without running it.
+
+Everything `cosim run` checks before tick 0, with the Python components
+constructed in this process to read their ports: FMUs, parameters, wiring,
+array layouts and the step order.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from cosim.errors import UserError
+from cosim.execution.abort import locate_parameter_problem
+
+
+def validate_scenario(scenario: Any) -> dict[str, Any]:
+    """Check a scenario as far as possible without running it.
+
+    Resolves and describes the FMUs, checks parameters, constructs the Python
+    components in this process to read their ports, resolves the wiring and
+    derives the step order (an algebraic loop is an error).
+
+    Args:
+        scenario: a validated `cosim.scenario.loader.Scenario`.
+    Returns:
+        {"components": name -> (inputs, outputs), "edges": [...], "order": [...]}.
+    Raises:
+        UserError describing the first class of problems found.
+    """
+    from cosim.transport.inproc import construct_component
+    from cosim.execution.prepare import prepare_run
+
+    try:
+        return _validate_prepared(scenario, prepare_run(scenario), construct_component)
+    except UserError as exc:
+        located = locate_parameter_problem(scenario, exc)
+        if located is not None:
+            raise located from None
+        raise
+
+
+def _validate_prepared(scenario: Any, prepared: Any,
+                       construct_component: Callable[[Any], Any]) -> dict[str, Any]:
+    """validate_scenario's checks after prepare_run (see there)."""
+    from cosim.engine.schedule import step_order
+    from cosim.engine.signals import build_layout
+    from cosim.engine.wiring import resolve_wiring
+
+    ports: dict[str, tuple[Any, Any]] = {}
+    feedthrough: dict[str, bool] = {}
+    for plan in prepared.fmus:
+        ports[plan.name] = (plan.interface.inputs, plan.interface.outputs)
+        feedthrough[plan.name] = False
+    for launch in prepared.launches:
+        comp = construct_component(launch)
+        ports[launch.name] = (tuple(comp.inputs), tuple(comp.outputs))
+        feedthrough[launch.name] = True
+    ports = {name: ports[name] for name in prepared.names}
+    edges = resolve_wiring(scenario, ports,
+                           {plan.name: plan.interface.unsupported for plan in prepared.fmus})
+    build_layout({n: _Ports(*p) for n, p in ports.items()}, edges)
+    order = step_order(prepared.names, feedthrough, edges)
+    return {"components": ports, "edges": edges, "order": order}
+
+
+@dataclass
+class _Ports:
+    inputs: Any
+    outputs: Any

@@ -1,0 +1,2 @@
+"""Paper-style figures of runs (matplotlib), comparisons of several runs, sweep histograms.
+"""

@@ -1,0 +1,60 @@
+"""Histograms of a sweep's metrics: one panel per metric, over the finished samples.
+
+Each panel shows the histogram of one metric with its p5, p50 and p95 marked
+(the values of the sweep's summary), so the spread a parameter range causes is
+visible at a glance next to summary.csv.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from cosim.figures.layouts import save_png
+
+
+def sweep_figure(samples: dict[str, list[float]], summary: dict[str, dict[str, float]],
+                 title: str = "sweep") -> Figure:
+    """One histogram panel per metric in `summary`.
+
+    Args:
+        samples: metric -> the finished samples' values.
+        summary: metric -> stats (as cosim.execution.sweep.summarize returns).
+        title: the figure's title.
+    """
+    names = [n for n in summary if samples.get(n)]
+    cols = min(4, max(1, len(names)))
+    rows = max(1, math.ceil(len(names) / cols))
+    fig = Figure(figsize=(4 * cols, 3 * rows), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, cols)).ravel()
+    for ax, name in zip(axes, names):
+        ax.hist(samples[name], bins=min(20, max(1, len(samples[name]))), color="tab:blue",
+                alpha=0.7)
+        for stat, style in (("p5", ":"), ("p50", "-"), ("p95", ":")):
+            ax.axvline(summary[name][stat], color="k", ls=style, lw=1, label=stat)
+        ax.set_title(f"{name} (n={int(summary[name]['n'])})", fontsize=9)
+        ax.set_xlabel(name)
+        ax.set_ylabel("samples")
+    for ax in axes[len(names):]:
+        ax.set_visible(False)
+    if names:
+        axes[0].legend(fontsize=7)
+    fig.suptitle(title)
+    return fig
+
+
+def draw_sweep_histograms(result) -> Path:
+    """Save `histograms.png` in the sweep's folder and return its path.
+
+    Args:
+        result: a cosim.execution.sweep.SweepResult.
+    """
+    samples = {name: [s.metrics[name] for s in result.samples
+                      if s.status == "ok" and name in s.metrics and np.isfinite(s.metrics[name])]
+               for name in result.summary}
+    fig = sweep_figure(samples, result.summary,
+                       f"sweep: {len(result.samples)} samples, {len(result.failures)} failed")
+    return save_png(fig, Path(result.out_dir) / "histograms.png")

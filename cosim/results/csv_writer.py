@@ -1,0 +1,300 @@
+"""CSV text from the recorder's binary spool: the writer process and the shared conversion.
+
+The recorder (`cosim.results.recorder`) appends every row of a table (signals.csv, or
+one array signal's CSV) as raw float64 values to a spool file `<stem>.f64`,
+described by a small JSON header `<stem>.f64.json` (column names, the CSV's
+file name, byte order). This module turns spool rows into the CSV text of the
+recorder's contract: a header line of column names, then one line per row with
+every float written by `repr` (the shortest text that reads back to the same
+float64). It does so either while the run goes on, in a separate process that
+tails the spool (`main`, so the text formatting runs on the other core), or in
+one pass (`rebuild_csv`, for the recorder's fallback and `cosim recover`).
+A partial last row in a spool (a master killed mid-write) is ignored. A row
+whose values are bit-identical to the previous row's (a held planner window)
+reuses that row's text: formatting floats is the whole cost of this module.
+
+Only the standard library is imported, so the process starts fast; it is run
+as a script (`python -S csv_writer.py HEADER...`). Protocol: the CSV files
+already hold their header line; the writer appends the complete rows it finds,
+polling. A line "close" on stdin means the spool is complete: it converts the
+rest, prints {"rows": {HEADER: rows}} as JSON on stdout and exits 0. End of
+stdin without "close" (the master died) converts what is on disk, prints the
+same and exits 3, leaving the spool for `cosim recover`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import sys
+from array import array
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO
+
+SPOOL_SUFFIX = ".f64"
+HEADER_SUFFIX = ".f64.json"
+SPOOL_FORMAT = "cosim-spool-f64"
+POLL_S = 0.2
+CHUNK_BYTES = 1 << 20  # converted per read: bounds the writer's memory
+EXIT_MASTER_GONE = 3
+
+
+class SpoolError(ValueError):
+    """A spool or its header cannot be read; the message names the file and field."""
+
+
+@dataclass(frozen=True)
+class SpoolHeader:
+    """What a spool holds.
+
+    Args:
+        path: the header file `<stem>.f64.json`.
+        columns: CSV column names, "time" first; one float64 per column per row.
+        csv: the CSV's file name, in the header's folder.
+        byteorder: "little" or "big", as the floats were written.
+    """
+
+    path: Path
+    columns: tuple[str, ...]
+    csv: str
+    byteorder: str
+
+    @property
+    def spool_path(self) -> Path:
+        """The binary spool file beside the header."""
+        return self.path.with_name(self.path.name[:-len(".json")])
+
+    @property
+    def csv_path(self) -> Path:
+        """The CSV file this spool becomes."""
+        return self.path.with_name(self.csv)
+
+    @property
+    def row_bytes(self) -> int:
+        """Bytes per spool row."""
+        return 8 * len(self.columns)
+
+    def csv_header_line(self) -> str:
+        """The CSV's first line."""
+        return ",".join(self.columns) + "\n"
+
+
+def write_header(spool_path: Path, csv_name: str, columns: list[str]) -> SpoolHeader:
+    """Write the JSON header of a spool (atomically) and return it.
+
+    Args:
+        spool_path: the spool file `<stem>.f64` the header describes.
+        csv_name: the CSV file name, in the same folder.
+        columns: column names, "time" first.
+    """
+    path = spool_path.with_name(spool_path.name + ".json")
+    data = {"format": SPOOL_FORMAT, "csv": csv_name, "columns": list(columns),
+            "byteorder": sys.byteorder}
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data) + "\n", encoding="utf-8")
+    os.replace(tmp, path)
+    return SpoolHeader(path, tuple(columns), csv_name, sys.byteorder)
+
+
+def read_header(path: Path) -> SpoolHeader:
+    """Read and check a spool header.
+
+    Args:
+        path: a `<stem>.f64.json` file.
+    Raises:
+        SpoolError naming the file and the field that is wrong.
+    """
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise SpoolError(f"{path}: unreadable spool header: {exc}") from None
+    if not isinstance(data, dict):
+        raise SpoolError(f"{path}: spool header is not a JSON object")
+    if data.get("format") != SPOOL_FORMAT:
+        raise SpoolError(f"{path}: format: expected {SPOOL_FORMAT!r}, got {data.get('format')!r}")
+    columns = data.get("columns")
+    if (not isinstance(columns, list) or not columns
+            or not all(isinstance(c, str) and c and not set(c) & set(",\n\r") for c in columns)):
+        raise SpoolError(f"{path}: columns: expected a non-empty list of names without "
+                         f"commas or newlines, got {columns!r}")
+    csv = data.get("csv")
+    if not isinstance(csv, str) or not csv.endswith(".csv") or "/" in csv or "\\" in csv:
+        raise SpoolError(f"{path}: csv: expected a file name ending in .csv, got {csv!r}")
+    byteorder = data.get("byteorder")
+    if byteorder not in ("little", "big"):
+        raise SpoolError(f"{path}: byteorder: expected 'little' or 'big', got {byteorder!r}")
+    return SpoolHeader(Path(path), tuple(columns), csv, byteorder)
+
+
+class RowFormatter:
+    """Formats whole float64 rows as CSV lines, every float as its repr.
+
+    A row whose values after the time are bit for bit those of the previous
+    row (a held array signal, e.g. a planner window that did not change)
+    reuses that row's text instead of formatting it again. The previous row
+    is remembered across calls, so a table can be formatted chunk by chunk.
+
+    Args:
+        ncols: floats per row (the time first).
+        byteorder: byte order of the data given to `format`.
+    """
+
+    def __init__(self, ncols: int, byteorder: str = sys.byteorder) -> None:
+        self.ncols = ncols
+        self.swap = byteorder != sys.byteorder
+        self._template = ",%r" * (ncols - 1) + "\n"  # "%r" of a float is exactly repr(float)
+        self._previous: bytes | None = None  # the previous row's values after the time, as bytes
+        self._previous_text = ""
+
+    def format(self, data: bytes) -> str:
+        """CSV lines of `data`, a whole number of rows.
+
+        Args:
+            data: raw float64 values.
+        """
+        values = array("d")
+        values.frombytes(data)
+        if self.swap:
+            values.byteswap()
+        n, size = self.ncols, 8 * self.ncols
+        template, previous, text = self._template, self._previous, self._previous_text
+        parts: list[str] = []
+        for row in range(len(values) // n):
+            start = row * n
+            payload = data[row * size + 8:(row + 1) * size]
+            if payload != previous:
+                previous, text = payload, template % tuple(values[start + 1:start + n])
+            parts.append(repr(values[start]))
+            parts.append(text)
+        self._previous, self._previous_text = previous, text
+        return "".join(parts)
+
+
+def format_rows(data: bytes, ncols: int, byteorder: str = sys.byteorder) -> str:
+    """CSV lines of whole float64 rows, every float as its repr.
+
+    Args:
+        data: raw float64 values, a whole number of rows of `ncols`.
+        ncols: floats per row.
+        byteorder: byte order of `data`.
+    """
+    return RowFormatter(ncols, byteorder).format(data)
+
+
+class SpoolTail:
+    """Follows one spool and appends its new complete rows to the CSV.
+
+    Args:
+        header: the spool's header; its CSV already holds the header line.
+    """
+
+    def __init__(self, header: SpoolHeader) -> None:
+        self.header = header
+        self.offset = 0
+        self.rows = 0
+        self._formatter = RowFormatter(len(header.columns), header.byteorder)
+        self._fd = os.open(header.spool_path, os.O_RDONLY)
+        self._csv: IO[str] = open(header.csv_path, "a", encoding="ascii", newline="\n")
+
+    def pump(self) -> int:
+        """Convert the complete rows written since the last call (at most one chunk).
+
+        Returns:
+            the number of rows appended to the CSV.
+        """
+        size = self.header.row_bytes
+        data = os.pread(self._fd, CHUNK_BYTES // size * size, self.offset)
+        rows = len(data) // size
+        if rows:
+            self._csv.write(self._formatter.format(data[:rows * size]))
+            self._csv.flush()
+            self.offset += rows * size
+            self.rows += rows
+        return rows
+
+    def drain(self) -> None:
+        """Convert every complete row on disk."""
+        while self.pump():
+            pass
+
+    def close(self) -> None:
+        """Close the spool and the CSV."""
+        os.close(self._fd)
+        self._csv.close()
+
+
+def rebuild_csv(header: SpoolHeader) -> tuple[int, int]:
+    """Write a table's whole CSV from its spool (temporary file, then rename).
+
+    Args:
+        header: the spool's header.
+    Returns:
+        (rows written, bytes of a partial last row that were ignored).
+    Raises:
+        SpoolError when the spool file is missing or unreadable.
+    """
+    spool = header.spool_path
+    try:
+        source = open(spool, "rb")
+    except OSError as exc:
+        raise SpoolError(f"{spool}: cannot read the spool: {exc.strerror}") from None
+    size, formatter, rows = header.row_bytes, RowFormatter(len(header.columns), header.byteorder), 0
+    tmp = header.csv_path.with_name(header.csv + ".tmp")
+    with source, open(tmp, "w", encoding="ascii", newline="\n") as out:
+        out.write(header.csv_header_line())
+        tail = b""
+        while chunk := source.read(CHUNK_BYTES // size * size):
+            data = tail + chunk
+            whole = len(data) // size * size
+            out.write(formatter.format(data[:whole]))
+            rows += whole // size
+            tail = data[whole:]
+    os.replace(tmp, header.csv_path)
+    return rows, len(tail)
+
+
+def _follow(tails: list[SpoolTail], control: IO[bytes]) -> bool:
+    """Convert as rows arrive until the master says close (True) or goes away (False)."""
+    busy = False
+    while True:
+        ready, _, _ = select.select([control], [], [], 0.0 if busy else POLL_S)
+        busy = sum([tail.pump() for tail in tails]) > 0  # a backlog: no sleeping
+        if ready:
+            line = control.readline()
+            if not line:
+                return False
+            if line.strip() == b"close":
+                return True
+
+
+def main(argv: list[str]) -> int:
+    """The writer process: tail the spools named by their header files.
+
+    Args:
+        argv: header file paths.
+    Returns:
+        0 after "close", 3 when the master went away, 2 on a bad header.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the master's to handle
+    try:
+        os.nice(10)  # the lockstep processes come first; the backlog waits on disk
+    except OSError:
+        pass
+    try:
+        tails = [SpoolTail(read_header(Path(arg))) for arg in argv]
+    except (SpoolError, OSError) as exc:
+        print(f"csv writer: {exc}", file=sys.stderr)
+        return 2
+    closing = _follow(tails, sys.stdin.buffer)
+    for tail in tails:
+        tail.drain()
+        tail.close()
+    print(json.dumps({"rows": {str(t.header.path): t.rows for t in tails}}), flush=True)
+    return 0 if closing else EXIT_MASTER_GONE
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,123 @@
+"""The run folder's manifest.json: what ran, where, with what, and how it went.
+
+Written once before tick 0 (status "running") and rewritten at the end (status
+"ok" or "failed" with the error), so even a killed run leaves a manifest.
+"""
+
+from __future__ import annotations
+
+import datetime
+import functools
+import os
+import platform
+import socket
+import sys
+from importlib import metadata
+from typing import Any
+
+import cosim
+
+PACKAGES = ("cosim-vehicle", "fmpy", "eclipse-zenoh", "numpy", "pydantic", "pyyaml",
+            "typer", "rich")
+
+
+@functools.lru_cache(maxsize=1)
+def package_versions() -> dict[str, str | None]:
+    """Installed versions of the packages a run depends on (None: not installed).
+
+    Cached: `cosim.execution.run` calls it while the component processes start, so that
+    the manifest costs nothing after their handshake.
+    """
+    versions: dict[str, str | None] = {}
+    for name in PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    versions["cosim"] = cosim.__version__
+    return versions
+
+
+def run_identity(scenario: Any, run_id: str, transport: str, status: str,
+                 error: str | None, time_key: str) -> dict[str, Any]:
+    """The manifest fields that say which run this is, shared by every manifest a run writes.
+
+    Args:
+        scenario: the scenario as run (overrides applied).
+        run_id: the run's id (Zenoh key scope).
+        transport: "inproc" or "zenoh".
+        status / error: the run's status ("running", "failed", ...) and error text.
+        time_key: name of the UTC timestamp field ("started_utc", "failed_utc").
+    """
+    return {
+        "name": scenario.name,
+        "run_id": run_id,
+        "status": status,
+        "error": error,
+        time_key: datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "scenario_file": str(scenario.source_file) if scenario.source_file else None,
+        "scenario": scenario.model_dump(mode="json", by_alias=True),
+        "transport": transport,
+    }
+
+
+def base_manifest(scenario: Any, prepared: Any, hosted: dict[str, Any], transport: str,
+                  run_id: str, order: list[str]) -> dict[str, Any]:
+    """The manifest before tick 0.
+
+    Args:
+        scenario: the scenario as run (overrides applied).
+        prepared: the PreparedRun (FMU plans with interfaces).
+        hosted: name -> HostedComponent.
+        transport: "inproc" or "zenoh".
+        run_id: the run's id (Zenoh key scope).
+        order: the master's step order.
+    """
+    host = socket.gethostname()
+    placement = dict(getattr(prepared, "placement", None) or {})  # component -> worker
+    return {
+        **run_identity(scenario, run_id, transport, "running", None, "started_utc"),
+        "step_order": list(order),
+        "periods_ticks": {n: int(c.period_ticks) for n, c in hosted.items()},
+        "fmus": {plan.name: _fmu_entry(plan) for plan in prepared.fmus},
+        "hosts": {name: placement.get(name, host) for name in hosted},
+        "pids": {name: getattr(c, "pid", None) or os.getpid() for name, c in hosted.items()},
+        "python": sys.version.split()[0],
+        "platform": platform.platform(),
+        "packages": dict(package_versions()),
+    }
+
+
+def _fmu_entry(plan: Any) -> dict[str, Any]:
+    interface = plan.interface
+    return {
+        "path": str(plan.path),
+        "sha256": getattr(interface, "sha256", None),
+        "fmi_version": getattr(interface, "fmi_version", None),
+        "model_identifier": getattr(interface, "model_identifier", None),
+        "guid": getattr(interface, "guid", None),
+        "parameters": dict(plan.parameters),
+    }
+
+
+def finish_manifest(manifest: dict[str, Any], result: Any) -> dict[str, Any]:
+    """The final manifest: status, error, ticks, times, real-time factor, pacing
+    stats, time to tick 0 and the start-up marks.
+
+    Args:
+        manifest: the manifest written before tick 0.
+        result: the RunResult.
+    """
+    final = dict(manifest)
+    final.update({
+        "status": result.status,
+        "error": result.error,
+        "ticks": result.ticks,
+        "sim_time_s": result.sim_time_s,
+        "wall_time_s": result.wall_time_s,
+        "real_time_factor": result.real_time_factor,
+        "realtime": result.realtime,
+        "time_to_tick0_s": result.time_to_tick0_s,
+        "startup": result.startup,
+    })
+    return final

@@ -1,0 +1,338 @@
+"""Recording a run into its folder as it goes.
+
+`signals.csv` has a `time` column, then one column per recorded scalar signal
+`component.signal`, one row per master tick (0 = after initialization). Array
+signals go to `arrays/<component>.<signal>.csv`, one row per step of their
+component. Floats are written with `repr`, the shortest text that reads back to
+the identical float64, so a reload is bit-identical. `write_json` writes the
+manifest and metrics atomically.
+
+Text formatting is too slow for the master's loop, so the loop only appends
+each row's raw float64 values to a binary spool per table (`signals.f64`,
+`arrays/<name>.f64`, each with a JSON header `*.f64.json` naming its columns,
+see `cosim.results.csv_writer`), written to the OS at least every `flush_interval`
+seconds of wall time. A writer process started at the first flush tails the
+spools and appends the CSV text on the other core; `close` (which the master's
+caller runs in `finally`) lets it finish, checks its row counts (rebuilding
+the CSV in this process if the writer failed) and removes the spools unless
+`keep_spool`. So a failing component loses nothing before its tick; if the
+master process itself is killed, the writer still converts what is on disk,
+and `recover` (`cosim recover RUN_DIR`) rebuilds every CSV from the spools.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import json
+import math
+import operator
+import os
+import struct
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cosim.results.csv_writer import (HEADER_SUFFIX, SPOOL_SUFFIX, SpoolError, SpoolHeader,
+                              read_header, rebuild_csv, write_header)
+from cosim.errors import UserError
+
+SIGNALS_FILE = "signals.csv"
+ARRAYS_DIR = "arrays"
+WRITER_SCRIPT = Path(__file__).with_name("csv_writer.py")
+WRITER_STALL_S = 10.0  # a writer that converts nothing for this long is given up
+
+
+def selected(name: str, include: Sequence[str], exclude: Sequence[str]) -> bool:
+    """Whether "component.signal" matches an include glob and no exclude glob.
+
+    Args:
+        name: the signal's full name.
+        include / exclude: fnmatch patterns.
+    """
+    return (any(fnmatch.fnmatchcase(name, p) for p in include)
+            and not any(fnmatch.fnmatchcase(name, p) for p in exclude))
+
+
+class _Table:
+    """One recorded table: its CSV header line, its spool file and the bytes not yet written.
+
+    Args:
+        folder: where the CSV, the spool and its header go.
+        stem: file name without extension.
+        columns: column names, "time" first.
+        offset / size / period: for an array signal, its slice of the master's
+            array buffer and its component's period in ticks.
+    """
+
+    def __init__(self, folder: Path, stem: str, columns: list[str],
+                 offset: int = 0, size: int = 0, period: int = 1) -> None:
+        self.offset, self.stop, self.period = offset, offset + size, period
+        spool = folder / f"{stem}{SPOOL_SUFFIX}"
+        self.fd = os.open(spool, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        self.header: SpoolHeader = write_header(spool, f"{stem}.csv", columns)
+        with open(self.header.csv_path, "w", encoding="ascii", newline="\n") as csv:
+            csv.write(self.header.csv_header_line())
+        self.pending = bytearray()
+        self.rows = 0
+
+    def write_pending(self) -> None:
+        """Hand the queued bytes to the OS (whole rows, unless the process dies mid-way)."""
+        with memoryview(self.pending) as view:
+            done = 0
+            while done < len(view):
+                done += os.write(self.fd, view[done:])
+        self.pending.clear()
+
+    def close(self) -> None:
+        """Write what is queued and close the spool (safe to call twice)."""
+        if self.fd >= 0:
+            self.write_pending()
+            os.close(self.fd)
+            self.fd = -1
+
+    def remove_spool(self) -> None:
+        """Delete the spool and its header."""
+        self.header.spool_path.unlink(missing_ok=True)
+        self.header.path.unlink(missing_ok=True)
+
+
+class Recorder:
+    """Observer of the master that appends every tick to the run folder.
+
+    Args:
+        out_dir: the run folder (created when missing).
+        include / exclude: fnmatch globs over "component.signal".
+        flush_interval: maximum wall time in seconds between two writes of the
+            spools to the OS.
+        keep_spool: keep the binary spools after the CSV files are complete.
+    """
+
+    def __init__(self, out_dir: str | Path, include: Sequence[str] = ("*",),
+                 exclude: Sequence[str] = (), flush_interval: float = 0.5,
+                 keep_spool: bool = False) -> None:
+        self.out_dir = Path(out_dir)
+        self.include, self.exclude = list(include), list(exclude)
+        self.flush_interval = flush_interval
+        self.keep_spool = keep_spool
+        self.columns: list[str] = []
+        self.rows = 0
+        self.writer_pid: int | None = None  # the CSV writer process, once started
+        self.writer_problem: str | None = None  # why the CSV was rebuilt here, if it was
+        self._tables: list[_Table] = []
+        self._array_groups: list[tuple[int, list[_Table]]] = []
+        self._writer: subprocess.Popen[bytes] | None = None
+        self._writer_tried = False
+        self._closed = False
+        self._last_flush = time.monotonic()
+
+    def begin(self, master: Any) -> None:
+        """Choose the columns from the master's layout; write the CSV and spool headers."""
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        layout = master.layout
+        chosen = [(n, i) for n, i in layout.scalar_columns()
+                  if selected(n, self.include, self.exclude)]
+        self.columns = [n for n, _ in chosen]
+        index = [i for _, i in chosen]
+        self._pick = operator.itemgetter(*index) if len(index) > 1 \
+            else (lambda values: [values[i] for i in index])
+        self._pack = struct.Struct(f"={1 + len(index)}d").pack
+        self._pack_time = struct.Struct("=d").pack
+        self._signals = _Table(self.out_dir, SIGNALS_FILE[:-len(".csv")], ["time"] + self.columns)
+        self._tables = [self._signals]
+        groups: dict[int, list[_Table]] = {}
+        for comp, signal, offset, size in layout.array_signals():
+            name = f"{comp}.{signal}"
+            if selected(name, self.include, self.exclude):
+                (self.out_dir / ARRAYS_DIR).mkdir(exist_ok=True)
+                period = master.components[comp].period_ticks
+                table = _Table(self.out_dir / ARRAYS_DIR, name,
+                               ["time"] + [f"{name}[{i}]" for i in range(size)], offset, size, period)
+                self._tables.append(table)
+                groups.setdefault(period, []).append(table)
+        self._array_groups = sorted(groups.items())
+        self._arrays_seen: Any = None
+        self._last_flush = time.monotonic()
+
+    def after_tick(self, tick: int, t: float, values: list[float], arrays: np.ndarray) -> None:
+        """Queue this tick's raw rows; write them to the spools when the interval has passed."""
+        signals = self._signals
+        signals.pending += self._pack(t, *self._pick(values))
+        signals.rows += 1
+        for period, tables in self._array_groups:
+            if tick % period == 0:
+                if arrays is not self._arrays_seen:  # a memoryview made once, not per tick
+                    self._arrays_seen, self._arrays_view = arrays, memoryview(arrays).cast("B")
+                stamp = self._pack_time(t)
+                for table in tables:
+                    table.pending += stamp
+                    table.pending += self._arrays_view[table.offset * 8:table.stop * 8]
+                    table.rows += 1
+        self.rows += 1
+        if time.monotonic() - self._last_flush >= self.flush_interval:
+            self.flush()
+            if not self._writer_tried:
+                self._start_writer()
+
+    def flush(self) -> None:
+        """Write the queued complete rows to the spools (the OS has them from here on)."""
+        for table in self._tables:
+            if table.pending and table.fd >= 0:
+                table.write_pending()
+        self._last_flush = time.monotonic()
+
+    def close(self) -> None:
+        """Complete every CSV, then remove the spools unless kept (safe to call twice).
+
+        The writer process converts what it has not yet converted; if it fails
+        or its row counts differ from the rows spooled, the CSV files are
+        rebuilt from the spools in this process.
+        """
+        if self._closed:
+            return
+        self._closed = True
+        for table in self._tables:
+            table.close()
+        if self._writer is not None:
+            self.writer_problem = self._finish_writer()
+        if self._writer is None or self.writer_problem is not None:
+            if self.writer_problem is not None:
+                print(f"recorder: {self.writer_problem}; CSV files rebuilt from the spools",
+                      file=sys.stderr)
+            for table in self._tables:
+                rebuild_csv(table.header)
+        if not self.keep_spool:
+            for table in self._tables:
+                table.remove_spool()
+
+    def _start_writer(self) -> None:
+        """Start the CSV writer process on the spools (the CSV is built at close if it fails)."""
+        self._writer_tried = True
+        args = [sys.executable, "-S", str(WRITER_SCRIPT)] + [str(t.header.path) for t in self._tables]
+        try:
+            self._writer = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                            stderr=subprocess.PIPE, start_new_session=True)
+        except OSError as exc:
+            self.writer_problem = f"CSV writer process not started: {exc}"
+            return
+        self.writer_pid = self._writer.pid
+
+    def _finish_writer(self) -> str | None:
+        """Tell the writer the spools are complete and wait; why its CSV is not trusted, or None."""
+        writer = self._writer
+        assert writer is not None and writer.stdin is not None
+        for action in (lambda: writer.stdin.write(b"close\n"), writer.stdin.close):
+            try:
+                action()
+            except OSError:
+                pass  # it died: its exit status says so below
+        writer.stdin = None  # closed: communicate() must not flush it
+        if not _wait_while_progressing(writer, [t.header.csv_path for t in self._tables]):
+            return f"CSV writer process made no progress for {WRITER_STALL_S:g} s"
+        out, err = writer.communicate()
+        if writer.returncode != 0:
+            last = err.decode(errors="replace").strip().splitlines()[-1:] or ["no message"]
+            return f"CSV writer process exited with status {writer.returncode}: {last[0]}"
+        try:
+            counted = json.loads(out)["rows"]
+        except (ValueError, KeyError, TypeError):
+            return f"CSV writer process gave an unreadable report: {out[:200]!r}"
+        for table in self._tables:
+            if counted.get(str(table.header.path)) != table.rows:
+                return (f"CSV writer process wrote {counted.get(str(table.header.path))} rows "
+                        f"to {table.header.csv_path}, expected {table.rows}")
+        return None
+
+
+def _wait_while_progressing(process: subprocess.Popen[bytes], outputs: list[Path]) -> bool:
+    """Wait for a process that keeps growing `outputs`; kill it after a stall (False)."""
+    last_size, last_change = -1, time.monotonic()
+    while True:
+        try:
+            process.wait(timeout=0.5)
+            return True
+        except subprocess.TimeoutExpired:
+            size = sum(p.stat().st_size for p in outputs if p.exists())
+            if size != last_size:
+                last_size, last_change = size, time.monotonic()
+            elif time.monotonic() - last_change > WRITER_STALL_S:
+                process.kill()
+                process.communicate()
+                return False
+
+
+def recover(run_dir: str | Path, keep_spool: bool = False) -> list[tuple[Path, int, int]]:
+    """Rebuild a run folder's CSV files from its spools (after the master was killed).
+
+    Args:
+        run_dir: the run folder.
+        keep_spool: keep the spools after the CSV files are written.
+    Returns:
+        (CSV path, rows written, bytes of a partial last row ignored) per table.
+    Raises:
+        UserError when the folder holds no spool or a spool cannot be read.
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise UserError(f"{run_dir}: not a folder")
+    paths = sorted(run_dir.glob(f"*{HEADER_SUFFIX}")) + sorted(
+        (run_dir / ARRAYS_DIR).glob(f"*{HEADER_SUFFIX}"))
+    if not paths:
+        raise UserError(f"{run_dir}: no recording spool (*{SPOOL_SUFFIX} with its "
+                        f"*{HEADER_SUFFIX} header) to recover from")
+    try:
+        headers = [read_header(p) for p in paths]
+        done = [(h.csv_path, *rebuild_csv(h)) for h in headers]
+    except SpoolError as exc:
+        raise UserError(str(exc)) from None
+    if not keep_spool:
+        for header in headers:
+            header.spool_path.unlink(missing_ok=True)
+            header.path.unlink(missing_ok=True)
+    return done
+
+
+def read_signals(path: str | Path) -> tuple[list[str], np.ndarray]:
+    """Read a signals.csv (or an arrays/ file) written by the recorder.
+
+    Args:
+        path: the CSV file.
+    Returns:
+        (column names, 2-D float64 array with one row per recorded tick).
+    """
+    with open(path, encoding="ascii") as handle:
+        names = handle.readline().rstrip("\n").split(",")
+        rows = [[float(v) for v in line.rstrip("\n").split(",")] for line in handle if line.strip()]
+    return names, np.array(rows, dtype=np.float64).reshape(len(rows), len(names))
+
+
+def write_json(path: str | Path, data: Any) -> None:
+    """Write JSON atomically (temporary file, then rename); non-finite floats become null.
+
+    Args:
+        path: destination file.
+        data: JSON-serializable data (dicts, lists, str, numbers, bools, None).
+    """
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", encoding="utf-8") as handle:
+        json.dump(_finite(data), handle, indent=2, sort_keys=False)
+        handle.write("\n")
+        handle.flush()
+        os.fsync(handle.fileno())
+    os.replace(tmp, path)
+
+
+def _finite(data: Any) -> Any:
+    """Replace NaN/inf floats by None so the JSON stays standard."""
+    if isinstance(data, float):
+        return data if math.isfinite(data) else None
+    if isinstance(data, dict):
+        return {str(k): _finite(v) for k, v in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [_finite(v) for v in data]
+    return data

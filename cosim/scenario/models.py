@@ -1,0 +1,337 @@
+"""Typed schema of a scenario file (pydantic v2, extra fields forbidden everywhere).
+
+`Scenario` is the validated document plus what the master asks of it: tick
+counts, per-component periods in ticks, plant parameters with uncertainty
+applied, the Python components (sources included) and the FMUs. Load files
+with `cosim.scenario.loader.load_scenario`, which adds YAML line numbers to errors.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field,
+                      FiniteFloat, NonNegativeFloat, PositiveFloat, PrivateAttr, Tag,
+                      ValidationInfo,
+                      model_validator)
+
+from cosim.errors import Problem, ScenarioError
+from cosim.scenario.checks import BUILTIN_FMUS, semantic_problems, whole_ticks
+from cosim.scenario.sources import SOURCE_CLASSES, SourceSpec
+from cosim.scenario.yaml_lines import LineMap, format_path
+
+STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
+PYTHON_CLASS = r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*$"
+ENDPOINT = r"^[A-Za-z_][A-Za-z0-9_]*(\.\S.*)?$"
+
+
+class Uncertainty(BaseModel):
+    """Plant parameter error: the plant gets value * scale + offset."""
+
+    model_config = STRICT
+    scale: float = 1.0
+    offset: float = 0.0
+
+    def apply(self, value: float) -> float:
+        """The perturbed value of a nominal parameter value."""
+        return value * self.scale + self.offset
+
+
+class FmuSpec(BaseModel):
+    """A component that is an FMU (built-in name or path to a .fmu).
+
+    Attributes:
+        fmu: built-in name (see BUILTIN_FMUS) or path, relative to the YAML file.
+        period: seconds between two steps (None: every master tick).
+        parameters: parameter start values by canonical name.
+        uncertainty: per-parameter scale/offset applied on top of `parameters`.
+        variables: canonical name -> the FMU's variable name (foreign FMUs).
+        host: "local" or the name of a worker.
+    """
+
+    model_config = STRICT
+    fmu: str = Field(min_length=1)
+    period: PositiveFloat | None = None
+    parameters: dict[str, FiniteFloat] = {}
+    uncertainty: dict[str, Uncertainty] = {}
+    variables: dict[str, str] = {}
+    host: str = Field("local", min_length=1)
+
+
+class PythonSpec(BaseModel):
+    """A component that is a Python class (a cosim.component.Component subclass).
+
+    Attributes:
+        python: "package.module:Class".
+        period: seconds between two steps (None: the class's default_period,
+            else every master tick).
+        parameters: keyword arguments of the class.
+        host: "local" or the name of a worker.
+    """
+
+    model_config = STRICT
+    python: str = Field(pattern=PYTHON_CLASS)
+    period: PositiveFloat | None = None
+    parameters: dict[str, Any] = {}
+    host: str = Field("local", min_length=1)
+
+
+def _component_tag(value: Any) -> str | None:
+    """'<fmu>' or '<python>' by which key the component has; None if both or neither."""
+    if isinstance(value, (FmuSpec, PythonSpec)):
+        return "<fmu>" if isinstance(value, FmuSpec) else "<python>"
+    if not isinstance(value, dict) or ("fmu" in value) == ("python" in value):
+        return None
+    return "<fmu>" if "fmu" in value else "<python>"
+
+
+ComponentSpec = Annotated[
+    Union[Annotated[FmuSpec, Tag("<fmu>")], Annotated[PythonSpec, Tag("<python>")]],
+    Discriminator(
+        _component_tag,
+        custom_error_type="component_kind",
+        custom_error_message="a component needs exactly one of 'fmu:' (built-in name or "
+                             "path to a .fmu) or 'python:' (module:Class)",
+    ),
+]
+
+
+def _parse_connection(value: Any) -> Any:
+    """Accept the short string forms "a -> b" and "a.x -> b.y"."""
+    if not isinstance(value, str):
+        return value
+    parts = value.split("->")
+    if len(parts) != 2:
+        raise ValueError(f"connection {value!r} must read 'source -> destination'")
+    return {"from": parts[0].strip(), "to": parts[1].strip()}
+
+
+class Connection(BaseModel):
+    """One connection: `component.port -> component.port`, or the short form
+    `component -> component` (every output feeding the input of the same name).
+
+    Attributes:
+        src, dst: "component" or "component.port" (YAML keys `from` and `to`).
+        delay: ticks of delay on this edge (1 breaks a feedback loop).
+    """
+
+    model_config = ConfigDict(extra="forbid", validate_by_name=True, validate_by_alias=True,
+                              serialize_by_alias=True)
+    src: str = Field(alias="from", pattern=ENDPOINT)
+    dst: str = Field(alias="to", pattern=ENDPOINT)
+    delay: int = Field(0, ge=0)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _short_string(cls, value: Any) -> Any:
+        return _parse_connection(value)
+
+    @model_validator(mode="after")
+    def _same_form(self) -> Connection:
+        if (self.src_port is None) != (self.dst_port is None):
+            raise ValueError(f"connection {self.src} -> {self.dst}: either both sides name a "
+                             "port (a.x -> b.y) or neither (a -> b)")
+        return self
+
+    @property
+    def src_component(self) -> str:
+        """Component name of the source side."""
+        return self.src.split(".", 1)[0]
+
+    @property
+    def src_port(self) -> str | None:
+        """Port name of the source side (None in the short form)."""
+        parts = self.src.split(".", 1)
+        return parts[1] if len(parts) == 2 else None
+
+    @property
+    def dst_component(self) -> str:
+        """Component name of the destination side."""
+        return self.dst.split(".", 1)[0]
+
+    @property
+    def dst_port(self) -> str | None:
+        """Port name of the destination side (None in the short form)."""
+        parts = self.dst.split(".", 1)
+        return parts[1] if len(parts) == 2 else None
+
+    @property
+    def is_short(self) -> bool:
+        """True for the `a -> b` form that matches ports by name."""
+        return self.src_port is None
+
+
+ConnectionEntry = Annotated[
+    Connection, BeforeValidator(_parse_connection, json_schema_input_type=Union[str, Connection])
+]
+
+
+class RecordSpec(BaseModel):
+    """Which signals to record: fnmatch globs over "component.signal"."""
+
+    model_config = STRICT
+    include: list[str] = ["*"]
+    exclude: list[str] = []
+
+    def selects(self, signal: str) -> bool:
+        """True if `signal` ("component.signal") matches an include and no exclude glob."""
+        return (any(fnmatch.fnmatchcase(signal, g) for g in self.include)
+                and not any(fnmatch.fnmatchcase(signal, g) for g in self.exclude))
+
+
+class MetricsSpec(BaseModel):
+    """Settings of the run metrics (cosim.analysis.metrics): transient to skip, cones, body size."""
+
+    model_config = STRICT
+    skip_s: NonNegativeFloat = 0.0
+    cones: list[tuple[FiniteFloat, FiniteFloat]] = []
+    vehicle_length: PositiveFloat = 4.5
+    vehicle_width: PositiveFloat = 1.8
+    vehicle_front: PositiveFloat | None = None   # CG to front bumper, m; None: half the length
+    figures: Literal["track", "manoeuvre"] | None = None   # None: chosen from the run
+
+
+class Scenario(BaseModel):
+    """A validated scenario; see the module docstring and cosim.scenario.loader for the format."""
+
+    model_config = STRICT
+    name: str = Field(min_length=1)
+    description: str = ""
+    duration: PositiveFloat
+    tick: PositiveFloat
+    start_time: FiniteFloat = 0.0
+    components: dict[str, ComponentSpec] = Field(min_length=1)
+    sources: dict[str, SourceSpec] = {}
+    connections: list[ConnectionEntry] = []
+    record: RecordSpec = RecordSpec()
+    metrics: MetricsSpec = MetricsSpec()
+
+    _file: Path | None = PrivateAttr(None)
+    _lines: LineMap = PrivateAttr(default_factory=LineMap)
+
+    @model_validator(mode="after")
+    def _cross_checks(self, info: ValidationInfo) -> Scenario:
+        if info.context and info.context.get("deferred_checks"):
+            return self  # load_scenario runs them itself, with line numbers
+        problems = semantic_problems(self.model_dump(), None)
+        if problems:
+            raise ValueError("; ".join(f"{format_path(loc)}: {msg}" for loc, msg in problems))
+        return self
+
+    # ---- where things are in the file -------------------------------------------------
+    @property
+    def source_file(self) -> Path | None:
+        """The YAML file this scenario was loaded from (None if built in memory)."""
+        return self._file
+
+    @property
+    def base_dir(self) -> Path:
+        """Folder that relative paths in the scenario resolve against."""
+        return self._file.parent if self._file is not None else Path.cwd()
+
+    def line_of(self, path: tuple[str | int, ...]) -> int | None:
+        """1-based YAML line of a document path, e.g. ("connections", 2); None if unknown."""
+        return self._lines.line_of(path)
+
+    def problem(self, path: tuple[str | int, ...], message: str) -> Problem:
+        """A Problem at a document path, with its line and any --set override noted."""
+        override = self._lines.override_of(path)
+        if override is not None:
+            message += f" (set by --set {override})"
+        return Problem(format_path(path), self.line_of(path), message)
+
+    def where(self, path: tuple[str | int, ...]) -> str:
+        """"FILE:LINE: PATH" for messages of other layers (FMU checks, wiring)."""
+        return self.problem(path, "").format(self._file).rstrip(": ")
+
+    # ---- what the master asks ---------------------------------------------------------
+    @property
+    def total_ticks(self) -> int:
+        """Number of master ticks in the run: duration / tick, exactly."""
+        ticks = whole_ticks(self.duration, self.tick)
+        if ticks is None:
+            raise ScenarioError(self._file, [self.problem(
+                ("duration",), f"duration {self.duration:g} s is not a whole number of ticks")])
+        return ticks
+
+    def spec(self, name: str) -> FmuSpec | PythonSpec:
+        """The spec of a component or source (sources as PythonSpec) by name."""
+        specs: dict[str, FmuSpec | PythonSpec] = {**self.fmu_components(),
+                                                  **self.python_components()}
+        if name not in specs:
+            raise ScenarioError(self._file, [Problem("components", None, (
+                f"no component named {name!r} (known: {', '.join(sorted(specs))})"))])
+        return specs[name]
+
+    def period_ticks(self, name: str, default_period: float | None = None) -> int:
+        """Ticks between two steps of a component or source.
+
+        Args:
+            name: the component's (or source's) name.
+            default_period: period in seconds to use when the scenario names
+                none (a Python class's `default_period`); None means every tick.
+        Raises:
+            ScenarioError: if the period is not a whole multiple of the tick.
+        """
+        period = self.spec(name).period
+        section = "sources" if name in self.sources else "components"
+        if period is None and default_period is not None:
+            period, note = default_period, " (the component's default period)"
+        else:
+            note = ""
+        if period is None:
+            return 1
+        ticks = whole_ticks(period, self.tick)
+        if ticks is None or ticks < 1:
+            raise ScenarioError(self._file, [self.problem((section, name, "period"), (
+                f"period {period:g} s{note} is not a whole multiple of tick {self.tick:g} s"))])
+        return ticks
+
+    def fmu_components(self) -> dict[str, FmuSpec]:
+        """The components given by an FMU, in file order."""
+        return {n: s for n, s in self.components.items() if isinstance(s, FmuSpec)}
+
+    def python_components(self) -> dict[str, PythonSpec]:
+        """The Python components, then one PythonSpec per source, in file order."""
+        result = {n: s for n, s in self.components.items() if isinstance(s, PythonSpec)}
+        for name, source in self.sources.items():
+            params = source.model_dump(mode="json", exclude={"kind", "period", "host"})
+            result[name] = PythonSpec(python=SOURCE_CLASSES[source.kind], period=source.period,
+                                      parameters=params, host=source.host)
+        return result
+
+    def plant_parameters(self, name: str, defaults: dict[str, float] | None = None
+                         ) -> dict[str, float]:
+        """Parameters of an FMU component with its uncertainty applied.
+
+        Args:
+            name: the FMU component's name.
+            defaults: the FMU's own start values (from describe_fmu), needed
+                when uncertainty names a parameter the scenario does not set.
+        Returns:
+            every parameter the scenario sets or perturbs -> value for the plant.
+        """
+        spec = self.fmu_components().get(name)
+        if spec is None:
+            raise ScenarioError(self._file, [Problem("components", None,
+                                                     f"no FMU component named {name!r}")])
+        values = dict(spec.parameters)
+        for param, error in spec.uncertainty.items():
+            base = values.get(param, (defaults or {}).get(param))
+            if base is None or not math.isfinite(base):
+                raise ScenarioError(self._file, [self.problem(
+                    ("components", name, "uncertainty", param),
+                    f"uncertainty on {param!r}, which has no value in parameters "
+                    "nor a start value in the FMU")])
+            values[param] = error.apply(base)
+        return values
+
+    def resolve_fmu_path(self, spec: FmuSpec) -> Path | str:
+        """A built-in FMU name as is, or the .fmu path resolved against the YAML's folder."""
+        if spec.fmu in BUILTIN_FMUS:
+            return spec.fmu
+        path = Path(spec.fmu)
+        return path if path.is_absolute() else self.base_dir / path

@@ -1,0 +1,191 @@
+"""In-process hosting of Python components (the `inproc` transport).
+
+`PythonComponentLaunch` (from `cosim.transport.launch`) says which component to host and
+how; `InprocComponent` imports the class, constructs it with the scenario
+parameters and drives it in this process behind the
+`cosim.engine.hosting.HostedComponent` protocol. `describe_exception` is the one-line
+text of a component's exception, shared with the Zenoh runner.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import re
+from collections.abc import Mapping
+
+from cosim.component import Component, ComponentError, Port, Value, ports_by_name
+from cosim.errors import ComponentFailure, UserError, did_you_mean
+from cosim.transport.launch import PythonComponentLaunch  # re-exported: its historical home
+
+
+def import_component_class(class_path: str, component: str) -> type[Component]:
+    """Import "module:Class" and check it is a Component subclass.
+
+    Args:
+        class_path: "package.module:ClassName".
+        component: the component's scenario name, for error messages.
+    """
+    module_name, sep, class_name = class_path.partition(":")
+    if not sep or not module_name or not class_name:
+        raise UserError(f"component {component!r}: python class {class_path!r} "
+                        f"is not of the form 'module:Class'")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise UserError(f"component {component!r}: cannot import module "
+                        f"{module_name!r}: {exc}") from exc
+    cls = getattr(module, class_name, None)
+    if cls is None:
+        classes = sorted(name for name, value in vars(module).items()
+                         if isinstance(value, type) and issubclass(value, Component)
+                         and value is not Component and not name.startswith("_"))
+        raise UserError(f"component {component!r}: module {module_name!r} has no class "
+                        f"{class_name!r}" + did_you_mean(class_name, classes)
+                        + (f"; its components: {', '.join(classes)}" if classes else ""))
+    if not isinstance(cls, type) or not issubclass(cls, Component):
+        raise UserError(f"component {component!r}: {class_path!r} is not a "
+                        f"cosim.component.Component subclass")
+    return cls
+
+
+class ParameterProblem(UserError):
+    """A component's constructor rejects one of its scenario parameters.
+
+    The master maps it to the parameter's YAML file, line and path
+    (`cosim.execution.run.locate_parameter_problem`); its plain text names the component.
+
+    Args:
+        component: the component's scenario name.
+        parameter: the parameter's name.
+        problem: what is wrong with it.
+    """
+
+    def __init__(self, component: str, parameter: str, problem: str) -> None:
+        super().__init__(f"component {component!r}: parameters.{parameter}: {problem}")
+        self.component, self.parameter, self.problem = component, parameter, problem
+
+
+_LEADING_NAME = re.compile(r"[A-Za-z_]\w*")
+
+
+def check_parameter_names(cls: type, launch: PythonComponentLaunch) -> None:
+    """Reject a parameter that the class's constructor does not take.
+
+    Args:
+        cls: the component class.
+        launch: the component's launch (name and parameters).
+    Raises:
+        ParameterProblem for the first unknown parameter, with a spelling hint
+        and the known names.
+    """
+    try:
+        signature = inspect.signature(cls)
+    except (TypeError, ValueError):
+        return  # no signature to hold the names against: the constructor decides
+    params = signature.parameters.values()
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
+        return
+    known = [p.name for p in params
+             if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)]
+    for name in launch.parameters:
+        if name not in known:
+            raise ParameterProblem(launch.name, name, f"unknown parameter {name!r}"
+                                   f"{did_you_mean(name, known)}; known: {', '.join(known)}")
+
+
+def _problem_of(launch: PythonComponentLaunch, exc: Exception) -> ParameterProblem | None:
+    """The parameter a constructor's error message starts with ("ke[0] must be > 0"), if any."""
+    match = _LEADING_NAME.match(str(exc))
+    if match is None or match.group() not in launch.parameters:
+        return None
+    return ParameterProblem(launch.name, match.group(), describe_exception(exc))
+
+
+def construct_component(launch: PythonComponentLaunch) -> Component:
+    """Import and construct the component of `launch`, checking its ports.
+
+    Args:
+        launch: what to construct.
+    Raises:
+        UserError naming the component when the class is missing, rejects its
+        parameters or declares invalid ports.
+    """
+    cls = import_component_class(launch.class_path, launch.name)
+    check_parameter_names(cls, launch)
+    try:
+        instance = cls(**dict(launch.parameters))
+        ports_by_name(tuple(instance.inputs))
+        ports_by_name(tuple(instance.outputs))
+    except (ComponentError, ValueError) as exc:
+        problem = _problem_of(launch, exc)
+        if problem is not None:
+            raise problem from exc
+        if not isinstance(exc, ComponentError):
+            raise UserError(f"component {launch.name!r}: constructor failed: "
+                            f"{describe_exception(exc)}") from exc
+        raise UserError(f"component {launch.name!r}: {exc}") from exc
+    except TypeError as exc:
+        raise UserError(f"component {launch.name!r}: bad parameters for "
+                        f"{launch.class_path}: {exc}") from exc
+    except Exception as exc:  # user code in __init__: report it, no traceback
+        raise UserError(f"component {launch.name!r}: constructor failed: "
+                        f"{describe_exception(exc)}") from exc
+    for port in (*instance.inputs, *instance.outputs):
+        if not isinstance(port, Port) or port.size < 1:
+            raise UserError(f"component {launch.name!r}: invalid port declaration {port!r}")
+    return instance
+
+
+class InprocComponent:
+    """A Python component hosted in the master's own process.
+
+    Exceptions raised by the component's `initialize`/`step` become
+    `ComponentFailure` naming the component, the tick and the cause.
+    """
+
+    def __init__(self, launch: PythonComponentLaunch) -> None:
+        """Construct the component described by `launch` (see construct_component)."""
+        self.launch = launch
+        self.name = launch.name
+        self.period_ticks = int(launch.period_ticks)
+        self.component = construct_component(launch)
+        self.inputs: tuple[Port, ...] = tuple(self.component.inputs)
+        self.outputs: tuple[Port, ...] = tuple(self.component.outputs)
+        self._last: tuple[int | None, float] = (None, 0.0)  # (tick, t) of the last call, for finish() errors
+
+    def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Call the component's `initialize(t0, inputs)`."""
+        self._last = (None, t0)
+        try:
+            return self.component.initialize(t0, inputs)
+        except Exception as exc:  # any failure of user code is reported, not raised raw
+            raise ComponentFailure(self.name, None, t0, describe_exception(exc)) from exc
+
+    def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Call the component's `step(t, inputs)`."""
+        self._last = (tick, t)
+        try:
+            return self.component.step(t, inputs)
+        except Exception as exc:
+            raise ComponentFailure(self.name, tick, t, describe_exception(exc)) from exc
+
+    def stop(self) -> dict[str, float]:
+        """Call the component's `finish()` and return its metrics."""
+        try:
+            metrics = self.component.finish() or {}
+        except Exception as exc:
+            raise ComponentFailure(self.name, *self._last,
+                                   f"finish() failed: {describe_exception(exc)}") from exc
+        return {str(k): float(v) for k, v in metrics.items()}
+
+
+def describe_exception(exc: BaseException) -> str:
+    """One line for an exception: its type (unless a ComponentError) and message.
+
+    Args:
+        exc: an exception raised by a component's code.
+    """
+    if isinstance(exc, ComponentError):
+        return str(exc)
+    return f"{type(exc).__name__}: {exc}"

@@ -1,0 +1,382 @@
+"""Master side of the Zenoh transport: one OS process per Python component.
+
+`ZenohComponents` opens the master's peer session, spawns the component
+processes, shakes hands with each (retrying until every one answers with its
+port declarations) and exposes one `RemoteComponent` per component, which the
+master drives through the `cosim.engine.hosting.HostedComponent` protocol. Each
+exchange puts one request and waits in a blocking `recv()` on the subscriber
+of that component's replies (exact keys: no wildcard on the hot path); the
+watchdog wakes that wait on a death (of any component) or a missed deadline,
+which then raises `ComponentFailure`.
+
+Start-up is ordered for speed: `spawn()` opens the session and starts the
+processes before this module loads numpy (codec, live view, watchdog), so
+the children's interpreters start while the master finishes its own imports.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import zenoh
+
+from cosim.errors import ComponentFailure, UserError
+from cosim.transport.launch import PythonComponentLaunch
+from cosim.transport.zenoh import config
+from cosim.transport.zenoh.processes import ChildProcess, reap
+from cosim.transport.zenoh.wire import HEADER, CodecError, Kind, decode_json, header_tick
+
+if TYPE_CHECKING:  # numpy-backed modules load after the processes are spawned
+    import numpy as np
+
+    from cosim.component import Port, Value
+    from cosim.transport.zenoh.live import LivePublisher
+    from cosim.transport.zenoh.watchdog import Watchdog
+
+HELLO_RETRY_S = 0.02
+TERMINATE_GRACE_S = 2.0
+OPEN_ATTEMPTS = 5
+
+
+class RemoteComponent:
+    """A component running in its own process, seen through HostedComponent."""
+
+    def __init__(self, host: "ZenohComponents", spec: PythonComponentLaunch,
+                 inputs: tuple[Port, ...], outputs: tuple[Port, ...], pid: int,
+                 channel: tuple[Any, Any]) -> None:
+        from cosim.transport.zenoh.codec import Layout
+
+        self.name = spec.name
+        self.period_ticks = int(spec.period_ticks)
+        self.inputs = inputs
+        self.outputs = outputs
+        self.pid = pid
+        self.in_layout = Layout(inputs, "input")
+        self.out_layout = Layout(outputs, "output")
+        self.publisher, self.replies = channel  # requests out, replies in
+        self._host = host
+
+    def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Initialize the remote component at t0; return its initial outputs."""
+        return self._host.exchange_outputs(self, Kind.START, None, t0, inputs)
+
+    def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Step the remote component to time t; return its outputs."""
+        return self._host.exchange_outputs(self, Kind.STEP, tick, t, inputs)
+
+    def stop(self) -> dict[str, float]:
+        """Ask the remote component to finish; return its metrics. Its process then exits."""
+        return self._host.exchange_stop(self)
+
+
+class ZenohComponents:
+    """Context manager hosting Python components in their own processes over Zenoh.
+
+    Args:
+        specs: the components to launch, one process each.
+        run_id: scopes every key expression (letters, digits, '_', '.', '-').
+        deadline_s: longest wait for any one reply before the component fails.
+        endpoint: the master's listen endpoint; None picks a free 127.0.0.1 TCP port.
+        connect: extra endpoints the master joins (a router, another host), or None.
+        startup_timeout_s: longest wait for every process's handshake.
+        prestarted: processes already started with `ChildProcess.prestart` (same
+            run id and `endpoint`), by component name; `spawn` sends them their
+            spec instead of starting new ones and ends those no spec names.
+    """
+
+    def __init__(self, specs: Sequence[PythonComponentLaunch], run_id: str,
+                 deadline_s: float = 5.0, endpoint: str | None = None, *,
+                 connect: Sequence[str] | None = None, startup_timeout_s: float = 20.0,
+                 prestarted: Mapping[str, ChildProcess] | None = None) -> None:
+        self.specs = list(specs)
+        self.run_id = config.check_key_chunk(run_id, "run_id")
+        names = [config.check_key_chunk(s.name, "component name") for s in self.specs]
+        if len(set(names)) != len(names):
+            raise UserError(f"run {run_id!r}: component names must be unique, got {names}")
+        if not deadline_s > 0:
+            raise UserError(f"run {run_id!r}: deadline_s must be > 0, got {deadline_s!r}")
+        self.deadline_s = float(deadline_s)
+        self.endpoint = endpoint
+        self._connect = list(connect or [])
+        self._startup_timeout_s = startup_timeout_s
+        self._components: dict[str, RemoteComponent] | None = None
+        self.session: Any = None
+        self._children: dict[str, ChildProcess] = {}
+        self._prestarted = dict(prestarted or {})
+        if self._prestarted and endpoint is None:
+            raise ValueError("prestarted processes need the endpoint they connect to")
+        self._watchdog: Watchdog | None = None
+        self._live: LivePublisher | None = None
+        self._seq = 0
+        self._failed: dict[str, ComponentFailure] = {}  # by component: raised again on reuse
+        # start-up marks of each process, seconds since its start: "imported" (runner
+        # modules loaded), "spec" (its class and parameters known), "session" (Zenoh
+        # open), "built" (component), "ready" (handshake); "cpu": CPU seconds by then
+        self.process_startup_s: dict[str, dict[str, float | None]] = {}
+
+    # ----------------------------------------------------------------- lifecycle
+    def __enter__(self) -> "ZenohComponents":
+        """Open the session, spawn the processes and wait for every handshake."""
+        self.spawn()
+        self.wait_ready()
+        return self
+
+    def spawn(self) -> None:
+        """Open the session and start the processes without waiting for them, so
+        that the caller can do other start-up work (load FMUs) meanwhile; then call
+        `wait_ready` (or use the object as a context manager, which does both)."""
+        try:
+            self._open_session()
+            for spec in self.specs:
+                early = self._prestarted.pop(spec.name, None)
+                if early is not None:
+                    early.send_spec(spec)
+                    self._children[spec.name] = early
+                else:
+                    self._children[spec.name] = self._spawn(spec)
+            reap(list(self._prestarted.values()), TERMINATE_GRACE_S)  # not in this run
+            self._prestarted.clear()
+        except BaseException:
+            self.close()
+            raise
+
+    def wait_ready(self) -> dict[str, "RemoteComponent"]:
+        """Wait for every component's handshake (once); return `components`."""
+        if self._components is None:
+            try:
+                from cosim.transport.zenoh.live import LivePublisher
+                from cosim.transport.zenoh.watchdog import Watchdog
+
+                if self._live is None:
+                    self._live = LivePublisher(self.session, self.run_id)
+                self._components = self._handshake()
+                self._watchdog = Watchdog(self.session, self.run_id, self._children,
+                                          self.deadline_s)
+                self._watchdog.start()
+            except BaseException:
+                self.close()
+                raise
+        return self._components
+
+    @property
+    def components(self) -> dict[str, "RemoteComponent"]:
+        """The hosted components by name, in declaration order (after the handshake)."""
+        if self._components is None:
+            raise RuntimeError("ZenohComponents: components read before the handshake "
+                               "(use `with ZenohComponents(...)` or call wait_ready())")
+        return self._components
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """End every process (terminate, then kill after a grace period) and the session."""
+        if self._watchdog is not None:
+            self._watchdog.close()
+            self._watchdog = None
+        reap([*self._children.values(), *self._prestarted.values()], TERMINATE_GRACE_S)
+        self._children.clear()
+        self._prestarted.clear()
+        if self.session is not None:
+            if self._live is not None:
+                self._live.close()
+                self._live = None
+            self.session.close()
+            self.session = None
+
+    def _session_config(self, endpoint: str) -> zenoh.Config:
+        """Config of the master session listening on `endpoint` (a subclass may add TLS)."""
+        return config.master_config(endpoint, self._connect)
+
+    def _spawn(self, spec: PythonComponentLaunch) -> ChildProcess:
+        """Start the process of one component (a subclass may start it elsewhere)."""
+        return ChildProcess(spec, self.run_id, self.endpoint)
+
+    @property
+    def pids(self) -> dict[str, int]:
+        """Process id of each component's process."""
+        return {name: child.pid for name, child in self._children.items()}
+
+    def _open_session(self) -> None:
+        """Open the master session, listening on `endpoint` or on a free port."""
+        attempts = 1 if self.endpoint else OPEN_ATTEMPTS
+        for attempt in range(attempts):
+            endpoint = self.endpoint or config.free_tcp_endpoint()
+            try:
+                self.session = zenoh.open(self._session_config(endpoint))
+            except zenoh.ZError as exc:
+                if attempt + 1 == attempts:
+                    raise UserError(f"run {self.run_id!r}: cannot listen on "
+                                    f"{endpoint}: {exc}") from exc
+                continue
+            self.endpoint = endpoint
+            break
+        self._token = self.session.liveliness().declare_token(config.master_alive_key(self.run_id))
+
+    # ----------------------------------------------------------------- handshake
+    def _handshake(self) -> dict[str, RemoteComponent]:
+        """Send HELLO to every silent component until all have sent their ports."""
+        pending = {spec.name: spec for spec in self.specs}
+        ready: dict[str, RemoteComponent] = {}
+        channels = {name: (self.session.declare_publisher(config.request_key(self.run_id, name),
+                                                          express=True),
+                           self.session.declare_subscriber(config.reply_key(self.run_id, name)))
+                    for name in pending}
+        hello = HEADER.pack(Kind.HELLO, 0, -1, 0.0)
+        end = time.monotonic() + self._startup_timeout_s
+        while pending:
+            for name in pending:
+                self._check_alive_at_start(name)
+                channels[name][0].put(hello)
+            self._collect_hellos(pending, channels, ready, time.monotonic() + HELLO_RETRY_S)
+            if pending and time.monotonic() > end:
+                name = next(iter(pending))
+                raise ComponentFailure(name, None, 0.0, f"no handshake within "
+                                       f"{self._startup_timeout_s:g} s after its process started")
+        # declaration order, not the order the answers happened to arrive in
+        return {spec.name: ready[spec.name] for spec in self.specs}
+
+    def _collect_hellos(self, pending: dict[str, PythonComponentLaunch],
+                        channels: dict[str, tuple[Any, Any]], ready: dict[str, RemoteComponent],
+                        until: float) -> None:
+        """Take the handshake replies that arrive before `until`."""
+        from cosim.transport.zenoh.codec import ports_from_json
+
+        while pending and time.monotonic() < until:
+            got = False
+            for name in list(pending):
+                sample = channels[name][1].try_recv()
+                if sample is None:
+                    continue
+                got = True
+                data = sample.payload.to_bytes()
+                kind = HEADER.unpack_from(data)[0]
+                if kind == Kind.ERROR:
+                    raise _build_error(name, decode_json(data))
+                if kind == Kind.PORTS:
+                    document = decode_json(data)
+                    ready[name] = RemoteComponent(
+                        self, pending.pop(name), ports_from_json(document["inputs"]),
+                        ports_from_json(document["outputs"]), int(document["pid"]),
+                        channels[name])
+                    self.process_startup_s[name] = dict(document.get("startup_s") or {})
+            if not got:
+                time.sleep(0.002)
+
+    def _check_alive_at_start(self, name: str) -> None:
+        child = self._children[name]
+        if child.exit_code() is not None:
+            raise ComponentFailure(name, None, 0.0, f"{child.describe_exit()} before its handshake")
+
+    # ----------------------------------------------------------------- exchanges
+    def exchange_outputs(self, remote: RemoteComponent, kind: int, tick: int | None,
+                         t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Send START or STEP with `inputs` to `remote`; return its decoded outputs."""
+        try:
+            request = remote.in_layout.encode(kind, self._seq + 1, header_tick(tick), t, inputs)
+        except CodecError as exc:
+            raise ComponentFailure(remote.name, tick, t, str(exc)) from None
+        data = self._exchange(remote, request, tick, t)
+        try:
+            return remote.out_layout.decode(data)
+        except CodecError as exc:
+            raise self._fail(ComponentFailure(remote.name, tick, t, str(exc))) from None
+
+    def exchange_stop(self, remote: RemoteComponent) -> dict[str, float]:
+        """Send STOP to `remote`; return its metrics ({} if it already failed: that
+        failure has been raised once, the master stops the others after it)."""
+        assert self._watchdog is not None
+        self._watchdog.finished.add(remote.name)  # its exit from now on is expected
+        if remote.name in self._failed:
+            return {}
+        request = HEADER.pack(Kind.STOP, self._seq + 1, -1, 0.0)
+        data = self._exchange(remote, request, None, 0.0)
+        return {str(k): float(v) for k, v in decode_json(data).items()}
+
+    def _exchange(self, remote: RemoteComponent, request: bytes, tick: int | None,
+                  t: float) -> bytes:
+        """Put one request and block until its reply; raise ComponentFailure on any failure."""
+        if remote.name in self._failed:
+            raise self._failed[remote.name]
+        watchdog = self._watchdog
+        assert watchdog is not None, "ZenohComponents used outside its `with` block"
+        self._seq += 1
+        seq = self._seq
+        watchdog.arm(seq, remote.name)
+        if watchdog.dead:
+            self._raise_if_dead(tick, t)
+        remote.publisher.put(request)
+        recv = remote.replies.recv
+        while True:
+            data = recv().payload.to_bytes()
+            kind, reply_seq = HEADER.unpack_from(data)[:2]
+            if reply_seq == seq and (kind == Kind.OUTPUTS or kind == Kind.METRICS):
+                watchdog.disarm()
+                return data
+            failure = self._failure_in(kind, reply_seq, seq, data, remote, tick, t)
+            if failure is not None:
+                watchdog.disarm()
+                raise self._fail(failure)
+
+    def _failure_in(self, kind: int, reply_seq: int, seq: int, data: bytes,
+                    remote: RemoteComponent, tick: int | None, t: float) -> ComponentFailure | None:
+        """The failure a non-matching message reports, or None for a stale one to skip."""
+        if kind in (Kind.ERROR, Kind.TIMEOUT) and reply_seq == seq:
+            return ComponentFailure(remote.name, tick, t, decode_json(data)["cause"])
+        if kind == Kind.DIED:
+            document = decode_json(data)
+            name = document["component"]
+            assert self._watchdog is not None
+            if name not in self._watchdog.finished:
+                return ComponentFailure(name, tick, t, document["cause"])
+        return None
+
+    def _raise_if_dead(self, tick: int | None, t: float) -> None:
+        """Raise the failure of a component that died (and was not stopped) since."""
+        assert self._watchdog is not None
+        for name, cause in list(self._watchdog.dead.items()):
+            if name not in self._watchdog.finished:
+                self._watchdog.disarm()
+                raise self._fail(ComponentFailure(name, tick, t, cause))
+
+    def _fail(self, failure: ComponentFailure) -> ComponentFailure:
+        self._failed[failure.component] = failure
+        if self._watchdog is not None:
+            self._watchdog.finished.add(failure.component)  # reported once, not again
+        return failure
+
+    # ----------------------------------------------------------------- live view
+    @property
+    def live(self) -> "LivePublisher | None":
+        """The run's live publisher (after `wait_ready`): `live.matching` is a plain
+        attribute, cheap enough to test every tick before building a vector."""
+        return self._live
+
+    @property
+    def live_matching(self) -> bool:
+        """True when some watcher subscribes to this run's live signals."""
+        return self._live is not None and self._live.matching
+
+    def publish(self, tick: int, t: float, names: list[str], values: np.ndarray) -> None:
+        """Publish the whole signal vector of a tick to live watchers (no-op if none).
+
+        Args:
+            tick: the master tick.
+            t: its simulation time.
+            names: one name per value, e.g. "controller.delta" (pass the same list each tick).
+            values: float64 vector of every signal at this tick.
+        """
+        if self._live is not None:
+            self._live.publish(tick, t, names, values)
+
+
+def _build_error(component: str, document: dict[str, Any]) -> UserError:
+    """The UserError of a component process that could not build its component
+    (a ParameterProblem when it names the rejected parameter)."""
+    if "parameter" in document and "problem" in document:
+        from cosim.transport.inproc import ParameterProblem
+
+        return ParameterProblem(component, str(document["parameter"]), str(document["problem"]))
+    return UserError(document["cause"])

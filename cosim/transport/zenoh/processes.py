@@ -1,0 +1,193 @@
+"""Component OS processes: spawn the runner, describe how one ended, reap them all.
+
+Each process runs `python -m cosim.transport.zenoh.runner --name <name> ...`,
+so `ps` shows which component it hosts. Its stdout and stderr go to a
+temporary file whose tail is quoted when the process dies unexpectedly.
+This module loads neither numpy nor zenoh: the master spawns the processes
+before it loads them, so that they start in parallel with its own imports.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import cosim
+from cosim.errors import UserError
+from cosim.transport.launch import PythonComponentLaunch
+
+TAIL_CHARS = 800
+PIPE_SAFE_BYTES = 16384  # written at once into an empty pipe (Linux pipes hold 64 KiB)
+
+
+def _json_default(value: Any) -> Any:
+    import numpy as np  # only numpy values reach here, so numpy is loaded already
+
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"{type(value).__name__} is not JSON-serializable")
+
+
+def _child_env() -> dict[str, str]:
+    """Environment letting the child import cosim and modules next to the master's cwd.
+
+    OpenBLAS gets one thread unless the user says otherwise: a component works
+    on small vectors, and numpy's import then starts no thread pool (about a
+    third faster on a busy 2-core machine, and no oversubscription).
+    """
+    env = dict(os.environ)
+    env.setdefault("OPENBLAS_NUM_THREADS", "1")
+    roots = [os.getcwd(), str(Path(cosim.__file__).resolve().parent.parent)]
+    if env.get("PYTHONPATH"):
+        roots.append(env["PYTHONPATH"])
+    env["PYTHONPATH"] = os.pathsep.join(roots)
+    return env
+
+
+def _runner_argv(name: str, run_id: str, endpoint: str) -> list[str]:
+    return [sys.executable, "-m", "cosim.transport.zenoh.runner", "--name", name,
+            "--run-id", run_id, "--connect", endpoint]
+
+
+def _params_json(spec: PythonComponentLaunch) -> str:
+    """The constructor parameters as JSON; UserError naming the component if they are not."""
+    try:
+        return json.dumps(dict(spec.parameters), default=_json_default)
+    except (TypeError, ValueError) as exc:
+        raise UserError(f"component {spec.name!r}: parameters cannot be sent to its "
+                        f"process: {exc}") from None
+
+
+class ChildProcess:
+    """One component process.
+
+    Args:
+        spec: what the process hosts.
+        run_id: the run's id (scopes every key).
+        endpoint: the master's listen endpoint the child connects to.
+        extra_args: more runner arguments (a worker passes --zenoh-config).
+    """
+
+    def __init__(self, spec: PythonComponentLaunch, run_id: str, endpoint: str,
+                 extra_args: Sequence[str] = ()) -> None:
+        argv = [*_runner_argv(spec.name, run_id, endpoint), "--class", spec.class_path,
+                "--params", _params_json(spec), "--period-ticks", str(int(spec.period_ticks)),
+                *extra_args]
+        self._start(spec.name, argv, subprocess.DEVNULL)
+
+    @classmethod
+    def prestart(cls, name: str, run_id: str, endpoint: str,
+                 preload: str | None = None) -> "ChildProcess":
+        """Start the process of component `name` before its class, parameters and
+        period are known: it loads its modules (numpy, zenoh, `preload`), then
+        waits for `send_spec` on its stdin (and exits quietly if stdin closes first).
+
+        Args:
+            name: the component's name (on the command line, for ps).
+            run_id: the run's id.
+            endpoint: the master's listen endpoint the child will connect to.
+            preload: a module the component's class probably lives in, or None.
+        """
+        child = cls.__new__(cls)
+        extra = ["--preload", preload] if preload else []
+        child._start(name, [*_runner_argv(name, run_id, endpoint), "--spec-stdin", *extra],
+                     subprocess.PIPE)
+        return child
+
+    def send_spec(self, spec: PythonComponentLaunch) -> None:
+        """Give a prestarted process its class, parameters and period.
+
+        Args:
+            spec: the launch description; its name must be this process's.
+        """
+        if spec.name != self.name:
+            raise ValueError(f"spec of {spec.name!r} sent to the process of {self.name!r}")
+        line = json.dumps({"class_path": spec.class_path, "period_ticks": spec.period_ticks,
+                           "parameters": json.loads(_params_json(spec))}).encode() + b"\n"
+        if len(line) <= PIPE_SAFE_BYTES:
+            self._write_spec(line)
+        else:  # the child reads only once its imports are done: do not block the master
+            threading.Thread(target=self._write_spec, args=(line,), daemon=True).start()
+
+    def _write_spec(self, line: bytes) -> None:
+        try:
+            self.popen.stdin.write(line)
+            self.popen.stdin.close()
+        except (OSError, ValueError):
+            pass  # the process died (or was reaped): the handshake reports how
+
+    def _start(self, name: str, argv: list[str], stdin: int) -> None:
+        self.name = name
+        self._log = tempfile.TemporaryFile(prefix=f"cosim-{name}-")
+        self.popen = subprocess.Popen(argv, env=_child_env(), stdin=stdin,
+                                      stdout=self._log, stderr=subprocess.STDOUT)
+        self.pid = self.popen.pid
+
+    def exit_code(self) -> int | None:
+        """The exit code if the process has ended (negative: killed by that signal)."""
+        return self.popen.poll()
+
+    def describe_exit(self) -> str:
+        """How the process ended, with the tail of what it printed."""
+        code = self.popen.poll()
+        if code is None:
+            text = "process vanished from the network (liveliness token lost)"
+        elif code < 0:
+            text = f"process killed by {signal.Signals(-code).name}"
+        else:
+            text = f"process exited with code {code}"
+        tail = self.log_tail()
+        return f"{text}; last output: {tail}" if tail else text
+
+    def log_tail(self) -> str:
+        """The last lines the process printed (stdout and stderr), stripped."""
+        try:
+            self._log.seek(0, os.SEEK_END)
+            size = self._log.tell()
+            self._log.seek(max(0, size - TAIL_CHARS))
+            return self._log.read().decode(errors="replace").strip()
+        except (OSError, ValueError):
+            return ""
+
+    def close_log(self) -> None:
+        """Release the log file."""
+        self._log.close()
+
+
+def reap(children: list[ChildProcess], grace_s: float) -> None:
+    """End every child: SIGTERM (and SIGCONT, for a stopped one) those still running,
+    SIGKILL whatever is left after `grace_s`; always waits so no zombie remains.
+
+    Args:
+        children: the processes to end.
+        grace_s: seconds given to the processes before they are killed.
+    """
+    deadline = time.monotonic() + grace_s
+    for child in children:
+        if child.exit_code() is None:
+            try:
+                child.popen.terminate()
+                child.popen.send_signal(signal.SIGCONT)  # a stopped process must run to end
+            except ProcessLookupError:
+                pass
+    for child in children:
+        try:
+            child.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            child.popen.kill()
+            child.popen.wait()
+        child.close_log()
+        stdin = getattr(child.popen, "stdin", None)  # a prestarted process's pipe
+        if stdin is not None:
+            stdin.close()

@@ -1,0 +1,239 @@
+"""Entry point of one component process, driven in lockstep by the master over Zenoh.
+
+    python -m cosim.transport.zenoh.runner --name controller --run-id R \\
+        --connect tcp/127.0.0.1:7447 --class pkg.module:Class --params '{"k": 1}'
+
+With `--spec-stdin` instead of `--class/--params`, the process was started
+before the master knew them (`cosim run` starts it while it loads the
+scenario): it loads its modules, then reads them as one JSON line on stdin.
+
+The process joins the master's endpoint as a peer, declares a liveliness
+token, builds the component, then answers requests in a blocking receive
+loop in the main thread: HELLO (its port declarations), START, STEP and STOP.
+Exceptions and bad outputs go back to the master as an ERROR reply. The
+process ignores SIGINT (the master decides when it ends) and exits at once
+when the master's liveliness token disappears.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import zenoh
+
+from cosim.component import Component
+from cosim.errors import UserError
+from cosim.transport.inproc import (ParameterProblem, PythonComponentLaunch, construct_component,
+                          describe_exception)
+from cosim.engine.startup import process_age_s
+from cosim.transport.zenoh import config
+from cosim.transport.zenoh.codec import (CodecError, Kind, Layout, HEADER,
+                                         encode_json, ports_to_json)
+
+MASTER_POLL_S = 0.1
+_STEP, _OUTPUTS = Kind.STEP, Kind.OUTPUTS
+
+
+def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
+    """Command line of the runner (see the module docstring).
+
+    Args:
+        argv: arguments without the program name; None for sys.argv[1:].
+    """
+    parser = argparse.ArgumentParser(prog="cosim.transport.zenoh.runner")
+    parser.add_argument("--name", required=True, help="component name in the scenario")
+    parser.add_argument("--run-id", required=True, help="run id scoping every key")
+    parser.add_argument("--connect", required=True, help="the master's Zenoh endpoint")
+    parser.add_argument("--class", dest="class_path", help="module:Class")
+    parser.add_argument("--params", default="{}", help="constructor parameters as JSON")
+    parser.add_argument("--period-ticks", type=int, default=1, help="for ps and logs only")
+    parser.add_argument("--zenoh-config", default=None,
+                        help="full session config as JSON (a worker's TLS/ACL); replaces the "
+                             "default peer config, --connect then only names the master")
+    parser.add_argument("--spec-stdin", action="store_true",
+                        help="read class, parameters and period as one JSON line on stdin "
+                             "(a process started before the master knew them)")
+    parser.add_argument("--preload", default=None,
+                        help="with --spec-stdin: a module to import while waiting for the spec")
+    args = parser.parse_args(argv)
+    if not args.class_path and not args.spec_stdin:
+        parser.error("give --class or --spec-stdin")
+    return args
+
+
+class _Server:
+    """Answers the master's requests for one component."""
+
+    def __init__(self, launch: PythonComponentLaunch, ages: dict[str, float | None]) -> None:
+        self.launch = launch
+        self.ages = ages  # start-up marks: seconds since this process started
+        self.component: Component | None = None
+        self.build_error = ""
+        self.build_detail: dict[str, str] = {}  # the parameter a constructor rejected, if known
+        try:
+            self.component = construct_component(launch)
+        except ParameterProblem as exc:
+            self.build_error = str(exc)
+            self.build_detail = {"parameter": exc.parameter, "problem": exc.problem}
+        except UserError as exc:
+            self.build_error = str(exc)
+        except Exception as exc:  # user code in __init__: report, do not crash
+            self.build_error = (f"component {launch.name!r}: constructor failed: "
+                                f"{describe_exception(exc)}")
+        if self.component is not None:
+            self.in_layout = Layout(self.component.inputs, "input")
+            self.out_layout = Layout(self.component.outputs)
+            # bound once: the step path below is the per-tick hot path
+            self._decode = self.in_layout.decode
+            self._encode = self.out_layout.encode
+            self._step_component = self.component.step
+
+    def handle(self, data: bytes) -> tuple[bytes | None, bool]:
+        """The reply to one request, and whether the process should end after it."""
+        kind, seq, tick, t = HEADER.unpack_from(data)
+        if kind == _STEP and self.component is not None:
+            try:
+                outputs = self._step_component(t, self._decode(data))
+            except Exception as exc:  # user code: the master reports it with tick and time
+                cause = describe_exception(exc)
+                return encode_json(Kind.ERROR, seq, tick, t, {"cause": cause}), False
+            try:
+                return self._encode(_OUTPUTS, seq, tick, t, outputs, True), False
+            except CodecError as exc:
+                return encode_json(Kind.ERROR, seq, tick, t, {"cause": str(exc)}), False
+        if kind == Kind.HELLO:
+            return self._hello(seq), False
+        if self.component is None:
+            return encode_json(Kind.ERROR, seq, tick, t, {"cause": self.build_error}), True
+        if kind == Kind.START:
+            return self._step(kind, seq, tick, t, data), False
+        if kind == Kind.STOP:
+            return self._stop(seq, tick, t), True
+        return None, False
+
+    def _hello(self, seq: int) -> bytes:
+        if self.component is None:
+            return encode_json(Kind.ERROR, seq, -1, 0.0, {"cause": self.build_error, "build": True,
+                                                     **self.build_detail})
+        return encode_json(Kind.PORTS, seq, -1, 0.0, {
+            "inputs": ports_to_json(self.component.inputs),
+            "outputs": ports_to_json(self.component.outputs), "pid": os.getpid(),
+            "startup_s": {**self.ages, "ready": process_age_s(), "cpu": time.process_time()}})
+
+    def _step(self, kind: int, seq: int, tick: int, t: float, data: bytes) -> bytes:
+        assert self.component is not None
+        try:
+            inputs = self.in_layout.decode(data)
+            if kind == Kind.START:
+                outputs = self.component.initialize(t, inputs)
+            else:
+                outputs = self.component.step(t, inputs)
+        except Exception as exc:  # user code: the master reports it with tick and time
+            return encode_json(Kind.ERROR, seq, tick, t, {"cause": describe_exception(exc)})
+        try:
+            return self.out_layout.encode(Kind.OUTPUTS, seq, tick, t, outputs, finite=True)
+        except CodecError as exc:
+            return encode_json(Kind.ERROR, seq, tick, t, {"cause": str(exc)})
+
+    def _stop(self, seq: int, tick: int, t: float) -> bytes:
+        assert self.component is not None
+        try:
+            metrics = self.component.finish() or {}
+            document: dict[str, Any] = {str(k): float(v) for k, v in metrics.items()}
+        except Exception as exc:
+            cause = f"finish() failed: {describe_exception(exc)}"
+            return encode_json(Kind.ERROR, seq, tick, t, {"cause": cause})
+        return encode_json(Kind.METRICS, seq, tick, t, document)
+
+
+def _exit_when_master_gone(session: zenoh.Session, run_id: str) -> None:
+    """Start a thread that ends this process when the master's liveliness token goes away."""
+    watcher = session.liveliness().declare_subscriber(config.master_alive_key(run_id), history=True)
+
+    def poll() -> None:
+        while True:
+            sample = watcher.try_recv()
+            if sample is None:
+                time.sleep(MASTER_POLL_S)
+            elif sample.kind == zenoh.SampleKind.DELETE:
+                os._exit(0)  # the master is gone: nobody will ever stop us
+
+    threading.Thread(target=poll, name="master-watch", daemon=True).start()
+
+
+def _launch(args: argparse.Namespace) -> PythonComponentLaunch | None:
+    """What to host: from the command line, or from one JSON line on stdin (None at EOF)."""
+    if not args.spec_stdin:
+        return PythonComponentLaunch(name=args.name, class_path=args.class_path,
+                                     parameters=json.loads(args.params),
+                                     period_ticks=args.period_ticks)
+    if args.preload:
+        try:
+            importlib.import_module(args.preload)
+        except Exception:  # noqa: BLE001 - a guess: the real import names any problem
+            pass
+    line = sys.stdin.readline()
+    if not line.strip():
+        return None
+    spec = json.loads(line)
+    return PythonComponentLaunch(name=args.name, class_path=str(spec["class_path"]),
+                                 parameters=dict(spec["parameters"]),
+                                 period_ticks=int(spec["period_ticks"]))
+
+
+def serve(args: argparse.Namespace) -> int:
+    """Open the session, build the component, answer requests until STOP."""
+    ages = {"imported": process_age_s()}
+    launch = _launch(args)
+    if launch is None:
+        return 0  # prestarted, then not needed: the master closed our stdin
+    ages["spec"] = process_age_s()  # = "imported" unless prestarted (then: spec received)
+    if args.zenoh_config:
+        conf = zenoh.Config.from_json5(args.zenoh_config)
+    else:
+        conf = config.client_peer_config(args.connect)
+    with zenoh.open(conf) as session:
+        _exit_when_master_gone(session, args.run_id)
+        token = session.liveliness().declare_token(config.alive_key(args.run_id, args.name))
+        ages["session"] = process_age_s()
+        # Build first, then subscribe: the master's HELLO retries sent while a slow
+        # constructor runs are not delivered, so they cannot fill the request queue.
+        server = _Server(launch, ages)
+        ages["built"] = process_age_s()
+        requests = session.declare_subscriber(config.request_key(args.run_id, args.name))
+        publisher = session.declare_publisher(config.reply_key(args.run_id, args.name),
+                                              express=True)
+        done = False
+        while not done:
+            data = requests.recv().payload.to_bytes()
+            reply, done = server.handle(data)
+            if reply is not None:
+                publisher.put(reply)
+        token.undeclare()
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one component process; see the module docstring.
+
+    Args:
+        argv: command-line arguments without the program name (None: sys.argv).
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if os.getcwd() not in sys.path:
+        sys.path.insert(0, os.getcwd())
+    args = parse_args(argv)
+    return serve(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,220 @@
+"""Monte-Carlo sweeps: sampling, override formatting, aggregation, and the Dask path."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from cosim.analysis.rundata import AnalysisError
+from cosim.execution.sweep import (Vary, format_override, parse_vary, run_sweep, sample_points,
+                         summarize, summarize_samples)
+from tests.helpers.paths import SCENARIOS_DIR
+
+VARIES = [Vary("components.vehicle.uncertainty.m.scale", 0.7, 1.3),
+          Vary("components.vehicle.parameters.mu", 0.3, 1.0),
+          Vary("sources.wind.amplitude", -500.0, 500.0)]
+
+
+def test_parse_vary_and_its_errors():
+    assert parse_vary("a.b.c=-1.5:2e3") == Vary("a.b.c", -1.5, 2000.0)
+    for text, message in [("a.b", "expected PATH=LOW:HIGH"), ("a=1", "expected PATH=LOW:HIGH"),
+                          ("a=x:2", "must be numbers"), ("a=2:1", "LOW 2 is above HIGH 1"),
+                          ("a=1:inf", "must be finite"), ("=1:2", "expected PATH=LOW:HIGH")]:
+        with pytest.raises(AnalysisError, match=message):
+            parse_vary(text)
+
+
+@pytest.mark.parametrize("method", ["lhs", "uniform"])
+def test_sampling_is_deterministic_and_within_bounds(method):
+    a = sample_points(VARIES, 50, seed=7, method=method)
+    assert a.shape == (50, 3)
+    np.testing.assert_array_equal(a, sample_points(VARIES, 50, seed=7, method=method))
+    assert not np.array_equal(a, sample_points(VARIES, 50, seed=8, method=method))
+    for j, v in enumerate(VARIES):
+        assert np.all((a[:, j] >= v.low) & (a[:, j] <= v.high))
+
+
+def test_latin_hypercube_puts_one_point_in_each_stratum():
+    n = 40
+    points = sample_points(VARIES, n, seed=3)
+    for j, v in enumerate(VARIES):
+        strata = np.floor((points[:, j] - v.low) / (v.high - v.low) * n).astype(int)
+        assert sorted(strata.tolist()) == list(range(n))
+
+
+def test_sampling_errors_and_constant_range():
+    with pytest.raises(AnalysisError, match="--samples 0"):
+        sample_points(VARIES, 0, seed=1)
+    with pytest.raises(AnalysisError, match="--method 'sobol'"):
+        sample_points(VARIES, 3, seed=1, method="sobol")
+    const = sample_points([Vary("x", 2.5, 2.5)], 4, seed=1)
+    assert const.ravel().tolist() == [2.5] * 4
+
+
+@pytest.mark.parametrize("value", [1e-05, 0.1, 1.3, 1e20, -2.5e-07, 0.7000000000000001])
+def test_override_value_reads_back_as_the_same_float_in_yaml(value):
+    path, _, text = format_override("components.vehicle.parameters.m", value).partition("=")
+    assert path == "components.vehicle.parameters.m"
+    parsed = yaml.safe_load(text)
+    assert isinstance(parsed, float) and parsed == value
+
+
+def test_summary_statistics_exact():
+    values = list(range(1, 102))  # 1..101
+    s = summarize(values[::-1])
+    assert s == {"n": 101.0, "mean": 51.0, "std": math.sqrt(101 * 102 / 12), "min": 1.0,
+                 "p5": 6.0, "p50": 51.0, "p95": 96.0, "max": 101.0}
+    assert summarize([4.0])["std"] == 0.0
+
+
+def fake_run(scenario_path: Path, overrides, run_dir: Path, transport: str) -> dict[str, float]:
+    """A cheap stand-in for a run: metrics are analytic functions of the overrides."""
+    assert overrides[0] == "duration=1"
+    values = {k: yaml.safe_load(v) for k, v in (o.split("=", 1) for o in overrides[1:])}
+    scale = values["components.vehicle.uncertainty.m.scale"]
+    if scale > 1.25:
+        raise RuntimeError(f"diverged at scale {scale}")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "marker.txt").write_text(transport)
+    return {"rms_yc": 2.0 * scale, "max_abs_ex": values["components.vehicle.parameters.mu"],
+            "controller.iterations": 3.0}
+
+
+def _read_csv(path: Path) -> list[dict[str, str]]:
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def test_sweep_on_a_local_dask_cluster_aggregates_exactly(tmp_path):
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text("name: s\n")
+    varies = ["components.vehicle.uncertainty.m.scale=0.7:1.3",
+              "components.vehicle.parameters.mu=0.3:1.0"]
+    options = {"processes": False, "n_workers": 1, "threads_per_worker": 1}
+    result = run_sweep(scenario, varies, samples=12, seed=5, out_dir=tmp_path / "out",
+                       run_fn=fake_run, cluster_options=options, sets=["duration=1"])
+    points = sample_points([parse_vary(v) for v in varies], 12, 5)
+    failed = points[:, 0] > 1.25
+    assert failed.any() and not failed.all()
+    assert [s.status for s in result.samples] == ["failed" if f else "ok" for f in failed]
+    assert all("RuntimeError: diverged" in s.error for s in result.failures)
+    ok = points[~failed]
+    assert result.summary["rms_yc"] == summarize(2.0 * ok[:, 0])
+    assert result.summary["max_abs_ex"] == summarize(ok[:, 1])
+    rows = _read_csv(tmp_path / "out" / "samples.csv")
+    assert [float(r["components.vehicle.uncertainty.m.scale"]) for r in rows] == points[:, 0].tolist()
+    assert [r["rms_yc"] for r in rows] == ["" if f else repr(float(2.0 * x))
+                                          for f, x in zip(failed, points[:, 0])]
+    summary = {r["metric"]: r for r in _read_csv(tmp_path / "out" / "summary.csv")}
+    assert float(summary["rms_yc"]["p95"]) == result.summary["rms_yc"]["p95"]
+    assert int(float(summary["controller.iterations"]["n"])) == int((~failed).sum())
+    assert (tmp_path / "out" / "samples" / "sample_0000" / "marker.txt").read_text() == "inproc"
+    settings = json.loads((tmp_path / "out" / "sweep.json").read_text())
+    assert settings["failed"] == int(failed.sum()) and settings["seed"] == 5
+    assert settings["sets"] == ["duration=1"]
+
+    again = run_sweep(scenario, varies, samples=12, seed=5, out_dir=tmp_path / "again",
+                      run_fn=fake_run, cluster_options=options, sets=["duration=1"])
+    for name in ("samples.csv", "summary.csv", "summary.md"):
+        assert (tmp_path / "again" / name).read_bytes() == (tmp_path / "out" / name).read_bytes()
+    assert again.summary == result.summary
+
+
+def test_sweep_input_errors(tmp_path):
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text("name: s\n")
+    with pytest.raises(AnalysisError, match="at least one --vary"):
+        run_sweep(scenario, [], 3, run_fn=fake_run, out_dir=tmp_path / "o")
+    with pytest.raises(AnalysisError, match="varied twice"):
+        run_sweep(scenario, ["a=0:1", "a=1:2"], 3, run_fn=fake_run, out_dir=tmp_path / "o")
+    with pytest.raises(AnalysisError, match="scenario file not found"):
+        run_sweep(tmp_path / "none.yaml", ["a=0:1"], 3, run_fn=fake_run, out_dir=tmp_path / "o")
+
+
+def test_cli_sweep_reports_bad_vary_without_traceback(tmp_path):
+    import typer
+    from typer.testing import CliRunner
+
+    from cosim.cli.analysis import register
+
+    app = typer.Typer()
+    register(app)
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text("name: s\n")
+    result = CliRunner().invoke(app, ["sweep", str(scenario), "--vary", "a=3:1", "--samples", "2",
+                                      "--out", str(tmp_path / "o")])
+    assert result.exit_code == 2
+    assert "--vary 'a=3:1': LOW 3 is above HIGH 1" in result.output
+
+
+SCENARIO = SCENARIOS_DIR / "satory_nominal.yaml"
+
+
+@pytest.mark.integration
+@pytest.mark.skipif(not SCENARIO.is_file(), reason="scenarios/satory_nominal.yaml not present")
+def test_real_runs_through_the_default_run_function(tmp_path):
+    from cosim.analysis.metrics import compute_metrics
+
+    result = run_sweep(SCENARIO, ["components.vehicle.uncertainty.Iz.scale=0.9:1.1"], samples=2,
+                       seed=2, out_dir=tmp_path / "out", sets=["duration=2"],
+                       cluster_options={"processes": False, "n_workers": 1})
+    assert [s.status for s in result.samples] == ["ok", "ok"], result.failures
+    for sample in result.samples:
+        run_dir = tmp_path / "out" / "samples" / f"sample_{sample.index:04d}"
+        manifest = json.loads((run_dir / "manifest.json").read_text())
+        assert manifest["scenario"]["duration"] == 2.0
+        iz = manifest["scenario"]["components"]["vehicle"]["uncertainty"]["Iz"]["scale"]
+        assert iz == sample.values[0]
+        for name, value in compute_metrics(run_dir).items():
+            assert sample.metrics[name] == value
+
+
+def test_sweep_joins_an_existing_scheduler_by_address(tmp_path):
+    from distributed import LocalCluster
+
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text("name: s\n")
+    varies = ["components.vehicle.uncertainty.m.scale=0.7:1.2",
+              "components.vehicle.parameters.mu=0.3:1.0"]
+    with LocalCluster(processes=False, n_workers=1, threads_per_worker=1,
+                      dashboard_address=None) as cluster:
+        result = run_sweep(scenario, varies, samples=3, seed=1, out_dir=tmp_path / "out",
+                           scheduler=cluster.scheduler_address, run_fn=fake_run,
+                           sets=["duration=1"])
+        assert len(cluster.scheduler.workers) == 1  # the cluster outlives the sweep
+    points = sample_points([parse_vary(v) for v in varies], 3, 1)
+    assert [s.metrics["rms_yc"] for s in result.samples] == (2.0 * points[:, 0]).tolist()
+    assert json.loads((tmp_path / "out" / "sweep.json").read_text())["scheduler"].startswith("inproc://")
+
+
+def test_sweep_histograms_one_panel_per_metric(tmp_path):
+    from cosim.figures.sweep import sweep_figure
+
+    samples = {"rms_yc": [0.1, 0.2, 0.4], "max_abs_ex": [1.0, 2.0, 3.0], "cone_hits": [0, 1, 1],
+               "mu_hat_final": [0.5, 0.6, 0.7], "max_abs_ay": [2.0, 2.5, 2.2]}
+    summary = {name: summarize(values) for name, values in samples.items()}
+    fig = sweep_figure(samples, summary)
+    visible = [ax for ax in fig.axes if ax.get_visible()]
+    assert [ax.get_title() for ax in visible] == [f"{n} (n=3)" for n in samples]
+    p95 = [line for line in visible[0].get_lines() if line.get_label() == "p95"][0]
+    assert p95.get_xdata()[0] == summary["rms_yc"]["p95"]
+    assert sum(patch.get_height() for patch in visible[2].patches) == 3
+
+
+def test_sweep_summary_prints_failures_verbatim(tmp_path, capsys):
+    from cosim.cli.analysis import _print_summary
+    from cosim.execution.sweep import SampleResult, SweepResult
+
+    error = "sample 1: ComponentFailure: output 'ref_x' = [nan 1.0] at omega[fl]"
+    samples = [SampleResult(0, [1.0], "ok", {"rms_yc": 0.5}), SampleResult(1, [2.0], "failed", {}, error)]
+    result = SweepResult([parse_vary("a=0:3")], samples, summarize_samples(samples), tmp_path, [])
+    _print_summary(result)
+    out = capsys.readouterr().out
+    assert f"failed: {error}\n" in out
+    assert "sweep: 2 samples, 1 failed" in out

@@ -1,0 +1,201 @@
+"""Small test components for the Zenoh transport tests (importable by the runner).
+
+Each one has state and non-trivial float arithmetic, so that a bit-identical
+comparison with an in-process run means something.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+
+import numpy as np
+
+from cosim.component import Component, ComponentError, Port, Value
+
+
+class Mixer(Component):
+    """Scalar and array inputs and outputs with a running state.
+
+    y = gain * sin(t) * u + state, state += y * 1e-3 + sum(w)
+    z = cumsum(w) * gain + y / 3
+    """
+
+    inputs = (Port("u"), Port("w", size=3))
+    outputs = (Port("y"), Port("z", size=3), Port("count"))
+
+    def __init__(self, gain: float = 1.0, fail_at: float | None = None,
+                 nan_at: float | None = None) -> None:
+        self.gain = float(gain)
+        self.fail_at = fail_at
+        self.nan_at = nan_at
+        self.state = 0.1
+        self.count = 0
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        if self.fail_at is not None and t >= self.fail_at:
+            raise ZeroDivisionError(f"mixer cannot divide at t={t}")
+        w = np.asarray(inputs["w"])
+        y = self.gain * math.sin(t) * inputs["u"] + self.state
+        self.state += y * 1e-3 + float(w.sum())
+        self.count += 1
+        z = np.cumsum(w) * self.gain + y / 3.0
+        if self.nan_at is not None and t >= self.nan_at:
+            z[1] = math.nan
+        return {"y": y, "z": z, "count": float(self.count)}
+
+    def finish(self) -> dict[str, float]:
+        return {"steps": float(self.count), "state": self.state}
+
+
+class Echo(Component):
+    """Outputs its input plus one: the trivial component of the benchmark."""
+
+    inputs = (Port("u"),)
+    outputs = (Port("y"),)
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        return {"y": inputs["u"] + 1.0}
+
+
+class Sleeper(Component):
+    """Sleeps `seconds` in every step after `after` (s): a component that hangs."""
+
+    inputs = (Port("u"),)
+    outputs = (Port("y"),)
+
+    def __init__(self, seconds: float = 3600.0, after: float = 0.0) -> None:
+        self.seconds = seconds
+        self.after = after
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        if t > self.after:
+            time.sleep(self.seconds)
+        return {"y": inputs["u"]}
+
+
+class BadParameter(Component):
+    """Rejects a negative `mass` in its constructor."""
+
+    outputs = (Port("y"),)
+
+    def __init__(self, mass: float = 1.0) -> None:
+        if mass < 0:
+            raise ComponentError(f"mass must be positive, got {mass}")
+        self.mass = mass
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        return {"y": self.mass}
+
+
+class ExitsInInit(Component):
+    """A process that dies while building its component, before the handshake."""
+
+    outputs = (Port("y"),)
+
+    def __init__(self, code: int = 3) -> None:
+        import os
+        os._exit(code)
+
+
+# ---------------------------------------------------------------- test helpers
+
+def launch(name: str, class_name: str, period_ticks: int = 1, **parameters: object):
+    """A PythonComponentLaunch of one of the classes above."""
+    from cosim.transport.inproc import PythonComponentLaunch
+    return PythonComponentLaunch(name, f"tests.helpers.components:{class_name}",
+                                 dict(parameters), period_ticks)
+
+
+def bits(values: Mapping[str, Value]) -> dict[str, tuple[str, bytes]]:
+    """Each value's kind and raw float64 bytes, to compare outputs bit for bit."""
+    return {name: ("array" if np.ndim(v) else "scalar", np.asarray(v, dtype=np.float64).tobytes())
+            for name, v in values.items()}
+
+
+def run_processes(run_id: str) -> list[int]:
+    """Pids of live (non-zombie) processes whose command line names `run_id`."""
+    import os
+    found = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/cmdline", "rb") as f:
+                argv = f.read().split(b"\0")
+            with open(f"/proc/{entry}/stat") as f:
+                state = f.read().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            continue
+        if run_id.encode() in argv and state != "Z":
+            found.append(int(entry))
+    return found
+
+
+class SlowStart(Component):
+    """Takes `seconds` to construct (many handshake retries meanwhile)."""
+
+    inputs = (Port("u"),)
+    outputs = (Port("y"),)
+
+    def __init__(self, seconds: float = 1.0) -> None:
+        time.sleep(seconds)
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        return {"y": 2.0 * inputs["u"]}
+
+
+class Gain(Component):
+    """y = k * x; NaN at t == fail_at, raises at t == raise_at (for failure tests)."""
+
+    inputs = (Port("x"),)
+    outputs = (Port("y"),)
+
+    def __init__(self, k: float = 2.0, fail_at: float = -1.0, raise_at: float = -1.0):
+        self.k, self.fail_at, self.raise_at = k, fail_at, raise_at
+
+    def step(self, t, inputs):
+        if t == self.fail_at:
+            return {"y": math.nan}
+        if t == self.raise_at:
+            raise ValueError("omega[fl] left its range: [nan 1.0] [red]x[/red]")
+        return {"y": self.k * inputs["x"]}
+
+
+GOOD = """\
+name: gain_demo
+duration: 0.5
+tick: 0.01
+components:
+  gain:
+    python: tests.helpers.components:Gain
+    parameters: {k: 3.0}
+sources:
+  ramp:
+    kind: ramp
+    start: 0.0
+    end: 1.0
+    t_start: 0.0
+    t_end: 1.0
+connections:
+  - {from: ramp.value, to: gain.x}
+"""
+
+
+class PController(Component):
+    """u = kp (ref - y)."""
+
+    inputs = (Port("ref"), Port("y"))
+    outputs = (Port("u"),)
+
+    def __init__(self, kp: float = 1.0):
+        self.kp = kp
+        self.steps = 0
+
+    def step(self, t, inputs):
+        self.steps += 1
+        return {"u": self.kp * (inputs["ref"] - inputs["y"])}
+
+    def finish(self):
+        return {"steps": float(self.steps)}

@@ -1,0 +1,103 @@
+"""Wire format of the Zenoh transport: bit-exact round trips, layout, error messages."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+
+from cosim.component import Port
+from cosim.transport.zenoh import config
+from cosim.transport.zenoh.codec import (HEADER, CodecError, Kind, Layout, decode_json,
+                                         encode_json, ports_from_json, ports_to_json)
+
+PORTS = (Port("a"), Port("b", size=3), Port("c"), Port("d", size=2))
+
+
+def random_finite(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Floats from random bit patterns (subnormals, huge, tiny, -0.0), NaN removed."""
+    bits = rng.integers(0, 2**64, size=4 * n, dtype=np.uint64).view(np.float64)
+    values = bits[~np.isnan(bits)][:n]
+    assert values.size == n
+    return values
+
+
+def test_scalar_layout_round_trips_every_bit():
+    rng = np.random.default_rng(11)
+    layout = Layout(tuple(Port(f"s{i}") for i in range(8)), "input")
+    special = [0.0, -0.0, 5e-324, -2.2250738585072014e-308, 1.7976931348623157e308,
+               float("inf"), float("-inf"), 1 / 3]
+    for row in [special, *random_finite(rng, 8 * 200).reshape(200, 8).tolist()]:
+        values = dict(zip(layout.names, row))
+        message = layout.encode(Kind.STEP, 7, 123456789012, 0.1 * 3, values)
+        decoded = layout.decode(message)
+        assert np.array(list(decoded.values())).tobytes() == np.array(row).tobytes()
+        assert HEADER.unpack_from(message) == (Kind.STEP, 7, 123456789012, 0.1 * 3)
+
+
+def test_array_layout_is_declared_order_flattened_and_exact():
+    rng = np.random.default_rng(12)
+    layout = Layout(PORTS)
+    flat = random_finite(rng, 7)
+    values = {"d": flat[5:7], "a": flat[0], "c": flat[4], "b": flat[1:4]}  # any dict order
+    message = layout.encode(Kind.OUTPUTS, 1, -1, 0.0, values)
+    assert message[HEADER.size:] == flat.astype("<f8").tobytes()
+    decoded = layout.decode(message)
+    assert isinstance(decoded["a"], float) and isinstance(decoded["c"], float)
+    assert decoded["b"].shape == (3,) and not decoded["b"].flags.writeable
+    assert np.concatenate([[decoded["a"]], decoded["b"], [decoded["c"]], decoded["d"]]).tobytes() \
+        == flat.tobytes()
+
+
+@pytest.mark.parametrize("values, message", [
+    ({"a": 1.0, "b": [1, 2, 3], "c": 2.0}, "output 'd' missing"),
+    ({"a": 1.0, "b": [1, 2], "c": 2.0, "d": [0, 0]}, "output 'b' has shape (2,), expected (3,)"),
+    ({"a": "x", "b": [1, 2, 3], "c": 2.0, "d": [0, 0]}, "output 'a' is not a number: 'x'"),
+    ({"a": 1.0, "b": [1, 2, 3], "c": float("nan"), "d": [0, 0]}, "output 'c' is non-finite: nan"),
+    ({"a": 1.0, "b": [1, float("inf"), 3], "c": 2.0, "d": [0, 0]},
+     "output 'b' is non-finite at [1]: inf"),
+    ([1.0], "returned list, expected a mapping of output signals"),
+])
+def test_bad_values_are_named(values, message):
+    with pytest.raises(CodecError) as error:
+        Layout(PORTS).encode(Kind.OUTPUTS, 1, 4, 0.04, values, finite=True)
+    assert str(error.value) == message
+
+
+def test_scalar_only_layout_rejects_nan_and_missing_by_name():
+    layout = Layout((Port("u"), Port("v")), "input")
+    with pytest.raises(CodecError, match=r"^input 'v' is non-finite: nan$"):
+        layout.encode(Kind.STEP, 1, 1, 0.0, {"u": 1.0, "v": float("nan")}, finite=True)
+    with pytest.raises(CodecError, match=r"^input 'u' missing$"):
+        layout.encode(Kind.STEP, 1, 1, 0.0, {"v": 1.0})
+    # without the check NaN travels (the master checks the values it produced)
+    assert np.isnan(layout.decode(layout.encode(Kind.STEP, 1, 1, 0.0,
+                                                {"u": 1.0, "v": float("nan")}))["v"])
+
+
+def test_decode_rejects_a_message_of_the_wrong_size():
+    layout = Layout(PORTS)
+    message = HEADER.pack(Kind.OUTPUTS, 1, 1, 0.0) + struct.pack("<3d", 1, 2, 3)
+    with pytest.raises(CodecError, match="message of 56 bytes, expected 88"):
+        layout.decode(message)
+
+
+def test_ports_and_json_documents_round_trip():
+    ports = (Port("delta", unit="rad", description="steering", default=0.5), Port("w", size=4))
+    assert ports_from_json(ports_to_json(ports)) == ports
+    message = encode_json(Kind.ERROR, 3, 9, 0.09, {"cause": "boom é"})
+    assert HEADER.unpack_from(message) == (Kind.ERROR, 3, 9, 0.09)
+    assert decode_json(message) == {"cause": "boom é"}
+
+
+@pytest.mark.parametrize("bad", ["", "a/b", "*", "x y", "run$1", "**"])
+def test_key_chunks_are_checked(bad):
+    with pytest.raises(ValueError, match="run_id"):
+        config.check_key_chunk(bad, "run_id")
+
+
+def test_keys_are_scoped_by_run():
+    assert config.request_key("r1", "controller") == "cosim/r1/ctl/controller/req"
+    assert config.reply_key("r1", "*") == "cosim/r1/ctl/*/rep"
+    assert config.run_id_of_live_key(config.live_data_key("run-7")) == "run-7"
