@@ -1,6 +1,7 @@
 /*
  * model.c - Vehicle8DOF: nonlinear 8-DOF vehicle plant (longitudinal, lateral,
- * yaw, roll, four wheel spins) with a combined-slip Dugoff-type tyre model,
+ * yaw, roll, four wheel spins) with a combined-slip tyre model (Dugoff-type,
+ * or Magic Formula with load sensitivity and relaxation: parameter tyre_model),
  * quasi-static load transfer, aero drag, side wind and torque split.
  *
  * Equations, parameter table and the integration choice: README.md beside
@@ -34,6 +35,8 @@ typedef struct {
     double x, y, psi, vx, vy, r, phi, phid;
     double om[N_WHEELS];     /* wheel spin speeds fl, fr, rl, rr */
     double ax, ay;           /* CG accelerations at the last force evaluation */
+    double kap[N_WHEELS];    /* Magic Formula: lagged longitudinal slip kappa' */
+    double tana[N_WHEELS];   /* Magic Formula: lagged lateral slip tan(alpha') */
 } State;
 
 /* Parameters and quantities derived from them, gathered once per call. */
@@ -44,6 +47,11 @@ typedef struct {
     double fz0[N_WHEELS], c_alpha[N_WHEELS], ck, px[N_WHEELS], py[N_WHEELS];
     double drive_share[N_WHEELS], brake_share[N_WHEELS];
     double f_rr, v_eps, dt_max;
+    /* Magic Formula tyre (tyre_model = 1) */
+    int pacejka;
+    double fz_nom[N_WHEELS], ky_ref[N_WHEELS], ky_load, mu_load;
+    double pdx, pdy, pcx, pex, pcy, pey, rbx1, rbx2, rby1, rby2;
+    double sigma_x, sigma_y, v_relax;
 } Par;
 
 /* Inputs held over one step, with the steering trigonometry done once. */
@@ -55,6 +63,9 @@ typedef struct {
 typedef struct {
     double fz[N_WHEELS], fx[N_WHEELS], fy[N_WHEELS], kx[N_WHEELS];
     double fx_sum, fy_sum, mz;
+    /* Magic Formula: dFx/dkappa' (>= 0), dkappa'_new/d(Rw om_new) and the
+       lag's residual (Rw om - vxw) - v_e kappa' of the implicit wheel update */
+    double dfx[N_WHEELS], gk[N_WHEELS], e0[N_WHEELS];
 } Forces;
 
 static double sprung_mass(const double *v)
@@ -65,6 +76,12 @@ static double sprung_mass(const double *v)
 static double sprung_cg_height(const double *v)
 {
     return (v[VR_m] * v[VR_h_cg] - v[VR_m_unsprung] * v[VR_Rw]) / sprung_mass(v);
+}
+
+/* Load shape of the cornering stiffness, K(Fz) proportional to sin(2 atan(x / ky_load)). */
+static double ky_shape(double x, double ky_load)
+{
+    return sin(2.0 * atan(x / ky_load));
 }
 
 static void load_par(const double *v, Par *p)
@@ -91,6 +108,18 @@ static void load_par(const double *v, Par *p)
         p->py[i] = 0.5 * (left ? 1.0 : -1.0) * (front ? p->tf : p->tr);
         p->drive_share[i] = 0.5 * (front ? ds : 1.0 - ds);
         p->brake_share[i] = 0.5 * (front ? bs : 1.0 - bs);
+    }
+    p->pacejka = v[VR_tyre_model] == 1.0;
+    p->ky_load = v[VR_ky_load]; p->mu_load = v[VR_mu_load];
+    p->pdx = v[VR_pDx]; p->pdy = v[VR_pDy];
+    p->pcx = v[VR_pCx]; p->pex = v[VR_pEx]; p->pcy = v[VR_pCy]; p->pey = v[VR_pEy];
+    p->rbx1 = v[VR_rBx1]; p->rbx2 = v[VR_rBx2]; p->rby1 = v[VR_rBy1]; p->rby2 = v[VR_rBy2];
+    p->sigma_x = v[VR_sigma_x]; p->sigma_y = v[VR_sigma_y]; p->v_relax = v[VR_v_relax];
+    for (int i = 0; i < N_WHEELS; ++i) {
+        double nom = i < 2 ? v[VR_Fz_nom_f] : v[VR_Fz_nom_r];
+        p->fz_nom[i] = nom > 0.0 ? nom : p->fz0[i];
+        /* K(Fz_nom) = Cf or Cr */
+        p->ky_ref[i] = p->c_alpha[i] / ky_shape(1.0, p->ky_load);
     }
 }
 
@@ -176,6 +205,118 @@ static void tyre_forces(const Par *p, const In *in, const State *s, Forces *f)
     }
 }
 
+/*
+ * Magic Formula (Pacejka) tyre at load fz, road friction mu, slip kappa and
+ * tan(alpha) (alpha > 0 gives a force to the right). Pure slip:
+ *   F0 = D sin(C atan(B s - E (B s - atan(B s)))),  B = K / (C D),
+ *   D = mu pD (1 + mu_load dfz) Fz (peak, >= 0.1 mu pD Fz), dfz = Fz / Fz_nom - 1,
+ *   Ky = ky_ref sin(2 atan(Fz / (ky_load Fz_nom))) (Ky(Fz_nom) = Cf, Cr),  Kx = Ck Fz / Fz_nom,
+ * so mu scales the peak and not the small-slip stiffness. Combined slip by the
+ * cosine weights Gx = cos(atan(Bxa alpha)), Bxa = rBx1 cos(atan(rBx2 kappa)),
+ * Gy = cos(atan(Byk kappa)), Byk = rBy1 cos(atan(rBy2 alpha)), then held inside
+ * the friction ellipse (Fx/Dx)^2 + (Fy/Dy)^2 <= 1. Also returns dFx/dkappa.
+ */
+static void pacejka(const Par *p, int i, double fz, double mu, double kap, double tana,
+                    double *fx, double *fy, double *dfx)
+{
+    *fx = *fy = *dfx = 0.0;
+    if (!(fz > 0.0) || !(mu > 0.0))
+        return;
+    double x = fz / p->fz_nom[i];
+    double peak = mu * fz * fmax(1.0 + p->mu_load * (x - 1.0), 0.1);
+    double dx = p->pdx * peak, dy = p->pdy * peak;
+    double kx = p->ck * x;
+    double ky = p->ky_ref[i] * ky_shape(x, p->ky_load);
+    double alpha = atan(tana);
+
+    double bx = kx / (p->pcx * dx), bk = bx * kap;
+    double phx = bk - p->pex * (bk - atan(bk));
+    double ax_ = p->pcx * atan(phx);
+    double fx0 = dx * sin(ax_);
+    double dphx = bx * (1.0 - p->pex) + p->pex * bx / (1.0 + bk * bk);
+    double dfx0 = dx * p->pcx * cos(ax_) / (1.0 + phx * phx) * dphx;
+
+    double by = ky / (p->pcy * dy), ba = by * alpha;
+    double phy = ba - p->pey * (ba - atan(ba));
+    double fy0 = dy * sin(p->pcy * atan(phy));
+
+    double zk = p->rbx2 * kap, ra = p->rbx1 * alpha;
+    double u = ra * ra / (1.0 + zk * zk);          /* (Bxa alpha)^2 */
+    double gx = 1.0 / sqrt(1.0 + u);
+    double du = -2.0 * u * zk * p->rbx2 / (1.0 + zk * zk);
+    double dgx = -0.5 * gx * gx * gx * du;
+    double byk = p->rby1 / sqrt(1.0 + p->rby2 * alpha * p->rby2 * alpha);
+    double gy = 1.0 / sqrt(1.0 + byk * kap * byk * kap);
+
+    double fxc = gx * fx0, fyc = gy * fy0;
+    double d = gx * dfx0 + dgx * fx0;
+    double rho = (fxc / dx) * (fxc / dx) + (fyc / dy) * (fyc / dy);
+    if (rho > 1.0) {
+        double s = 1.0 / sqrt(rho);
+        fxc *= s; fyc *= s; d *= s;
+    }
+    *fx = fxc;
+    *fy = -fyc;
+    *dfx = d;
+}
+
+/* Relaxation length at wheel speed vxw: sigma (v / v_relax)^2 below v_relax. */
+static double relax_length(const Par *p, double sigma, double vxw)
+{
+    double r = vxw / p->v_relax;
+    return r * r < 1.0 ? sigma * r * r : sigma;
+}
+
+/*
+ * Magic Formula tyre forces at the current state. With dt > 0 the lateral lag
+ * sigma d(tan a')/dt = vyw - v_e tan a' (v_e = max(|vxw|, v_eps)) takes one
+ * backward-Euler step with the velocities of the sub-step start (for sigma = 0
+ * tan a' = vyw / v_e, the quasi-static slip); with dt = 0 the lags are read only.
+ * The longitudinal lag is advanced with the wheel spin in pacejka_wheel_update.
+ */
+static void pacejka_forces(const Par *p, const In *in, State *s, Forces *f, double dt)
+{
+    wheel_loads(p, s, f->fz);
+    for (int i = 0; i < N_WHEELS; ++i) {
+        double vxc = s->vx - s->r * p->py[i];
+        double vyc = s->vy + s->r * p->px[i];
+        double vxw = vxc, vyw = vyc;
+        if (i < 2) {
+            vxw = vxc * in->cd + vyc * in->sd;
+            vyw = -vxc * in->sd + vyc * in->cd;
+        }
+        double ve = fmax(fabs(vxw), p->v_eps);
+        double sy = relax_length(p, p->sigma_y, vxw);
+        if (dt > 0.0) {
+            if (sy > 0.0) {
+                double a = dt / sy;
+                s->tana[i] = (s->tana[i] + a * vyw) / (1.0 + a * ve);
+            } else {
+                s->tana[i] = vyw / ve;
+            }
+        }
+        double slip_v = p->rw * s->om[i] - vxw;
+        double sx = relax_length(p, p->sigma_x, vxw);
+        if (sx > 0.0 && dt > 0.0) {
+            double a = dt / sx;
+            f->gk[i] = a / (1.0 + a * ve);
+            f->e0[i] = slip_v - ve * s->kap[i];
+        } else {
+            if (sx > 0.0) {
+                f->gk[i] = 0.0;
+            } else {
+                s->kap[i] = slip_v / ve;
+                f->gk[i] = 1.0 / ve;
+            }
+            f->e0[i] = 0.0;
+        }
+        double dfx;
+        pacejka(p, i, f->fz[i], in->mu, s->kap[i], s->tana[i], &f->fx[i], &f->fy[i], &dfx);
+        f->dfx[i] = fmax(dfx, 0.0);
+        f->kx[i] = f->dfx[i] * f->gk[i];
+    }
+}
+
 /* Sum the wheel forces into body-axis force and yaw moment, with aero and wind. */
 static void body_sums(const Par *p, const In *in, const State *s, Forces *f)
 {
@@ -220,6 +361,36 @@ static void wheel_update(const Par *p, const In *in, State *s, Forces *f, double
     }
 }
 
+/*
+ * Magic Formula wheel update: the wheel spin and the longitudinal lag together,
+ * linearly implicit. Backward Euler on the lag gives
+ * kappa'_new = kappa' + gk (Rw (om_new - om) + e0), with Fx to first order
+ * Fx + dFx/dkappa (kappa'_new - kappa'), so the spin update has the form of the
+ * Dugoff one with the stiffness dFx/dkappa gk and the predicted force
+ * Fx + dFx/dkappa gk e0 (sigma_x = 0: gk = 1 / v_e, e0 = 0, the quasi-static
+ * slip). dFx/dkappa is held >= 0: past the peak the force is explicit.
+ */
+static void pacejka_wheel_update(const Par *p, const In *in, State *s, Forces *f, double dt)
+{
+    for (int i = 0; i < N_WHEELS; ++i) {
+        double den = p->iy + dt * p->rw * p->rw * f->kx[i];
+        double drive = in->drive * p->drive_share[i];
+        double resist = in->brake * p->brake_share[i] + p->f_rr * f->fz[i] * p->rw;
+        double fx_pred = f->fx[i] + f->kx[i] * f->e0[i];
+        double om_free = s->om[i] + dt * (drive - p->rw * fx_pred) / den;
+        double cap = dt * resist / den;
+        double om_new = 0.0;
+        if (om_free > cap)
+            om_new = om_free - cap;
+        else if (om_free < -cap)
+            om_new = om_free + cap;
+        double dkap = f->gk[i] * (p->rw * (om_new - s->om[i]) + f->e0[i]);
+        f->fx[i] += f->dfx[i] * dkap;
+        s->kap[i] += dkap;
+        s->om[i] = om_new;
+    }
+}
+
 /* Roll of the sprung mass about the roll axis over dt: the spring and damper
    backward Euler (stable for any k_roll, c_roll, Ix_s), the lateral and gravity
    moments explicit. */
@@ -236,8 +407,13 @@ static void roll_update(const Par *p, State *s, double dt)
 static void sub_step(const Par *p, const In *in, State *s, double dt)
 {
     Forces f;
-    tyre_forces(p, in, s, &f);
-    wheel_update(p, in, s, &f, dt);
+    if (p->pacejka) {
+        pacejka_forces(p, in, s, &f, dt);
+        pacejka_wheel_update(p, in, s, &f, dt);
+    } else {
+        tyre_forces(p, in, s, &f);
+        wheel_update(p, in, s, &f, dt);
+    }
     body_sums(p, in, s, &f);
     s->ax = f.fx_sum / p->m;
     s->ay = f.fy_sum / p->m;
@@ -257,7 +433,10 @@ static void sub_step(const Par *p, const In *in, State *s, double dt)
 static void update_accel(const Par *p, const In *in, State *s)
 {
     Forces f;
-    tyre_forces(p, in, s, &f);
+    if (p->pacejka)
+        pacejka_forces(p, in, s, &f, 0.0);
+    else
+        tyre_forces(p, in, s, &f);
     body_sums(p, in, s, &f);
     s->ax = f.fx_sum / p->m;
     s->ay = f.fy_sum / p->m;
@@ -276,6 +455,10 @@ static void snap_state(State *s)
     s->phi = snap(s->phi); s->phid = snap(s->phid);
     for (int i = 0; i < N_WHEELS; ++i)
         s->om[i] = snap(s->om[i]);
+    for (int i = 0; i < N_WHEELS; ++i) {
+        s->kap[i] = snap(s->kap[i]);
+        s->tana[i] = snap(s->tana[i]);
+    }
 }
 
 /*
@@ -296,6 +479,29 @@ static double stable_dt(const Par *p, double mu)
     return lam > 0.0 ? STABILITY_FACTOR / lam : p->dt_max;
 }
 
+/*
+ * The same bound for the Magic Formula tyre, whose small-slip stiffness does
+ * not scale with mu: the lateral stiffness of a tyre is at most
+ * ky_ref (sin <= 1) and at most ky_ref (2 / ky_load) Fz / Fz_nom (sin(2 atan z) <= 2 z),
+ * the longitudinal one Ck Fz / Fz_nom; the Magic Formula's slope is largest
+ * at zero slip for the C, E ranges of variables.def. The lags only lower the
+ * tyre damping (d tan a' / d vyw <= 1 / v_e), so the bound holds with them.
+ */
+static double stable_dt_pacejka(const Par *p)
+{
+    double mg = p->m * GRAVITY;
+    double nom_min = fmin(p->fz_nom[0], p->fz_nom[2]);
+    double ky_max = fmax(p->ky_ref[0], p->ky_ref[2]);
+    double cy_sum = fmin(N_WHEELS * ky_max, ky_max * 2.0 / p->ky_load * mg / nom_min) / p->v_eps;
+    double cx_sum = p->ck * mg / nom_min / p->v_eps;
+    double arm = fmax(p->lf, p->lr), half_t = 0.5 * fmax(p->tf, p->tr);
+    double lam_x = cx_sum / p->m;
+    double lam_y = cy_sum / p->m;
+    double lam_r = (cy_sum * arm * arm + cx_sum * half_t * half_t) / p->iz;
+    double lam = fmax(lam_x, fmax(lam_y, lam_r));
+    return lam > 0.0 ? STABILITY_FACTOR / lam : p->dt_max;
+}
+
 static void write_outputs(const State *s, double *v)
 {
     v[VR_x] = s->x; v[VR_y] = s->y; v[VR_psi] = s->psi;
@@ -308,6 +514,11 @@ static void write_outputs(const State *s, double *v)
 static ModelStatus validate(const double *v, const ModelLogger *log)
 {
     int bad = 0;
+    if (!(v[VR_tyre_model] == 0.0 || v[VR_tyre_model] == 1.0)) {
+        model_logf(log, LOG_ERROR, "parameter tyre_model = %g must be 0 (Dugoff) or 1 "
+                   "(Magic Formula)", v[VR_tyre_model]);
+        ++bad;
+    }
     if (!(sprung_mass(v) > 0.0)) {
         model_logf(log, LOG_ERROR, "parameter m_unsprung = %g must be less than m = %g "
                    "(the unsprung mass is part of the vehicle mass)", v[VR_m_unsprung], v[VR_m]);
@@ -339,8 +550,10 @@ static ModelStatus initialize(double *v, void *state, double t0, const ModelLogg
     load_in(v, &in);
     s->x = v[VR_x0]; s->y = v[VR_y0]; s->psi = v[VR_psi0]; s->vx = v[VR_vx0];
     s->vy = s->r = s->phi = s->phid = s->ax = s->ay = 0.0;
-    for (int i = 0; i < N_WHEELS; ++i)
+    for (int i = 0; i < N_WHEELS; ++i) {
         s->om[i] = v[VR_vx0] / p.rw;
+        s->kap[i] = s->tana[i] = 0.0;
+    }
     update_accel(&p, &in, s);
     write_outputs(s, v);
     return MODEL_OK;
@@ -358,7 +571,7 @@ static ModelStatus do_step(double *v, void *state, double t, double h, const Mod
     }
     load_par(v, &p);
     load_in(v, &in);
-    double dt_lim = fmin(p.dt_max, stable_dt(&p, in.mu));
+    double dt_lim = fmin(p.dt_max, p.pacejka ? stable_dt_pacejka(&p) : stable_dt(&p, in.mu));
     double n_sub = ceil(h / dt_lim * (1.0 - 1e-12));
     double dt = h / n_sub;
     for (long k = 0; k < (long)n_sub; ++k)
@@ -374,7 +587,7 @@ const ModelDefinition MODEL = {
     "Vehicle8DOF",
     "{6b1f2f4e-8d0a-4c55-9a0e-8d0f2c6e8a01}",
     "Nonlinear 8-DOF vehicle: longitudinal, lateral, yaw, roll, four wheel spins, "
-    "combined-slip Dugoff tyres, quasi-static load transfer",
+    "combined-slip Dugoff or Magic Formula tyres, quasi-static load transfer",
     VARIABLES,
     VR_COUNT,
     sizeof(State),
