@@ -19,8 +19,14 @@ time (`--clock wall`). The timers' own costs (measured on an empty step just
 before the run) are taken off. The timed run with the smallest total and the fastest untimed run
 are reported (least disturbed by other jobs on a shared machine).
 
+With `--profile`, one more untimed run goes under a profiler (benchmarks.common.profile_call;
+`--profiler pyinstrument`, the default, or `py-spy`):
+it prints the time inside each part (FMU step, controller, planner, the whole tick loop) and the
+functions with the most self time, and `--profile-out FILE` (.html or text) keeps the call tree.
+
 Run: .venv/bin/python benchmarks/bench_closed_loop.py [--seconds 20] [--repeats 5] [--clock cpu|wall]
      [--controller backstepping|feedforward|stanley|pure_pursuit] [--manoeuvre lane_keeping|lane_change]
+     [--profile] [--profile-out FILE]
 """
 
 from __future__ import annotations
@@ -34,6 +40,8 @@ from pathlib import Path
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from benchmarks.common import PROFILERS, profile_call  # noqa: E402
 
 from cosim.errors import UserError  # noqa: E402
 from cosim.fmu_component import FmuComponent  # noqa: E402
@@ -157,6 +165,33 @@ def run_once(prepared, timed: bool) -> tuple[float, dict[str, tuple[float, int]]
     return elapsed, {name: (timer.seconds, timer.calls) for name, timer in timers.items()}
 
 
+def profile_run(prepared, out: str | None, profiler: str) -> None:
+    """One untimed run under the profiler: time per tick inside each part and the hottest functions."""
+    hosted = build_hosts(prepared)
+    master = build_master(prepared, hosted)
+
+    def loop() -> None:
+        for k in range(1, master.total_ticks + 1):
+            master.step_tick(k)
+
+    def step_in(*files: str):
+        return lambda function, path: function == "step" and Path(path).name in files
+
+    groups = {"FMU step (FmuComponent.step)": step_in("fmu_component.py"),
+              "controller (*Controller.step)": step_in("backstepping.py", "baselines.py"),
+              "planner (Planner.step, amortized)": step_in("planner.py"),
+              "tick loop (Master.step_tick)": lambda function, path: (
+                  function == "step_tick" and Path(path).name == "master.py")}
+    try:
+        master.initialize()
+        figures = profile_call(loop, units=master.total_ticks, groups=groups, out=out, profiler=profiler)
+    finally:
+        master.stop_all()
+    parts = sum(v for k, v in figures.items() if not k.startswith(("tick loop", "total")))
+    loop_us = figures.get("tick loop (Master.step_tick)", 0.0)
+    print(f"  {'master (tick loop minus the parts)':<40}{loop_us - parts:>9.2f} us/tick")
+
+
 def timed_figures(prepared, ticks: int) -> dict[str, float]:
     """One timed run as us per tick: each component, `master overhead` and `total`, timer costs taken off."""
     inner_bias, outer_cost = timer_cost()
@@ -178,6 +213,14 @@ def main() -> None:
     parser.add_argument("--clock", choices=sorted(CLOCKS), default="cpu",
                         help="cpu: this thread's CPU time (not inflated when other jobs take the core); "
                              "wall: elapsed time")
+    parser.add_argument("--profile", action="store_true",
+                        help="also profile one untimed run (pyinstrument) and print the hot spots")
+    parser.add_argument("--profile-out", metavar="FILE",
+                        help="with --profile: keep the profile there (pyinstrument: .html or text tree; "
+                             "py-spy: collapsed stacks)")
+    parser.add_argument("--profiler", choices=PROFILERS, default="pyinstrument",
+                        help="pyinstrument (in-process, inflates Python code ~2x) or py-spy (attaches "
+                             "from outside, needs ptrace rights, no slow-down)")
     args = parser.parse_args()
     if not (args.seconds >= 0.1 and args.repeats >= 1):
         parser.error(f"need --seconds >= 0.1 and --repeats >= 1, got {args.seconds} and {args.repeats}")
@@ -191,6 +234,8 @@ def main() -> None:
         for _ in range(args.repeats):
             plain.append(run_once(prepared, timed=False)[0] / ticks * 1e6)
             timed.append(timed_figures(prepared, ticks))
+        if args.profile or args.profile_out:
+            profile_run(prepared, args.profile_out, args.profiler)
     best = min(timed, key=lambda figures: figures["total"])
     labels = {"vehicle": "FMU step (vehicle)", "controller": "controller (every tick)",
               "planner": "planner (amortized, 1 in 10 ticks)"}
