@@ -26,7 +26,10 @@ functions with the most self time, and `--profile-out FILE` (.html or text) keep
 
 Run: .venv/bin/python benchmarks/bench_closed_loop.py [--seconds 20] [--repeats 5] [--clock cpu|wall]
      [--controller backstepping|feedforward|stanley|pure_pursuit] [--manoeuvre lane_keeping|lane_change]
-     [--profile] [--profile-out FILE]
+     [--profile] [--profile-out FILE] [--profiler pyinstrument|py-spy] [--fmu-host platform|shim]
+
+`--fmu-host shim` hosts the FMU with the C stepping shim (benchmarks/stepper_binding.py) instead
+of the platform's FmuComponent.
 """
 
 from __future__ import annotations
@@ -133,10 +136,22 @@ def timer_cost(calls: int = 20000) -> tuple[float, float]:
     return timer.seconds / calls, max(wrapped - bare, 0.0) / calls
 
 
+FMU_HOSTS = ("platform", "shim")
+FMU_HOST = "platform"   # set from --fmu-host in main()
+
+
 def build_hosts(prepared) -> dict:
-    """The run's hosts in declaration order: the FMU and the Python components, all in-process."""
-    hosted = {plan.name: FmuComponent(plan.name, plan.path, plan.interface, plan.parameters,
-                                      plan.period_ticks) for plan in prepared.fmus}
+    """The run's hosts in declaration order: the FMU and the Python components, all in-process.
+
+    The FMU host is the platform's FmuComponent, or with FMU_HOST "shim" the
+    benchmarks' ShimFmuComponent (one C call per step, benchmarks/stepper_binding.py).
+    """
+    if FMU_HOST == "shim":
+        from benchmarks.stepper_binding import shim_fmu_component as host
+    else:
+        host = FmuComponent
+    hosted = {plan.name: host(plan.name, plan.path, plan.interface, plan.parameters,
+                              plan.period_ticks) for plan in prepared.fmus}
     hosted.update({launch.name: InprocComponent(launch) for launch in prepared.launches})
     return {name: hosted[name] for name in prepared.names}
 
@@ -177,7 +192,7 @@ def profile_run(prepared, out: str | None, profiler: str) -> None:
     def step_in(*files: str):
         return lambda function, path: function == "step" and Path(path).name in files
 
-    groups = {"FMU step (FmuComponent.step)": step_in("fmu_component.py"),
+    groups = {"FMU step (FmuComponent.step)": step_in("fmu_component.py", "stepper_binding.py"),
               "controller (*Controller.step)": step_in("backstepping.py", "baselines.py"),
               "planner (Planner.step, amortized)": step_in("planner.py"),
               "tick loop (Master.step_tick)": lambda function, path: (
@@ -221,11 +236,14 @@ def main() -> None:
     parser.add_argument("--profiler", choices=PROFILERS, default="pyinstrument",
                         help="pyinstrument (in-process, inflates Python code ~2x) or py-spy (attaches "
                              "from outside, needs ptrace rights, no slow-down)")
+    parser.add_argument("--fmu-host", choices=FMU_HOSTS, default="platform",
+                        help="platform: cosim's FmuComponent (3 ctypes calls per step); shim: the C "
+                             "stepping shim (1 call, benchmarks/stepper_binding.py)")
     args = parser.parse_args()
     if not (args.seconds >= 0.1 and args.repeats >= 1):
         parser.error(f"need --seconds >= 0.1 and --repeats >= 1, got {args.seconds} and {args.repeats}")
-    global CLOCK
-    CLOCK = CLOCKS[args.clock]
+    global CLOCK, FMU_HOST
+    CLOCK, FMU_HOST = CLOCKS[args.clock], args.fmu_host
     with tempfile.TemporaryDirectory() as tmp:
         prepared = prepare_run(load_scenario(write_scenario(Path(tmp), args.seconds, args.controller,
                                                             args.manoeuvre)))
@@ -239,7 +257,7 @@ def main() -> None:
     best = min(timed, key=lambda figures: figures["total"])
     labels = {"vehicle": "FMU step (vehicle)", "controller": "controller (every tick)",
               "planner": "planner (amortized, 1 in 10 ticks)"}
-    print(f"{args.controller} + planner ({args.manoeuvre}) + Vehicle8DOF, {ticks} ticks of "
+    print(f"{args.controller} + planner ({args.manoeuvre}) + Vehicle8DOF ({args.fmu_host} FMU host), {ticks} ticks of "
           f"{tick * 1e3:g} ms, {args.clock} clock, best of {args.repeats} timed runs (timer costs taken off)")
     print(f"{'part':<36}{'us/tick':>10}{'share':>8}")
     for name, value in best.items():
