@@ -41,7 +41,7 @@ SOURCE_DIR = REPO_DIR / "fmus" / "stepper"
 SOURCES = ("cosim_stepper.c", "cosim_stepper.h")
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-fvisibility=hidden", "-Wall", "-Wextra", "-Wpedantic", "-Werror")
 LIBRARY = "libcosim_stepper.so"
-ABI = 1                       # COSIM_STEPPER_ABI in cosim_stepper.h
+ABI = 2                       # COSIM_STEPPER_ABI in cosim_stepper.h
 
 STEP_DONE, STEP_SET, STEP_DO_STEP, STEP_GET, STEP_TERMINATE = range(5)
 CALL_NAMES = {2: ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal"),
@@ -134,6 +134,7 @@ def load_stepper(cache_dir: Path | None = None) -> ctypes.CDLL:
         lib.cosim_stepper_step.restype = ctypes.c_int
         lib.cosim_stepper_abi.restype = ctypes.c_int
         lib.cosim_stepper_size.restype = ctypes.c_size_t
+        lib.cosim_stepper_fmi2_logger.restype = None
         if lib.cosim_stepper_abi() != ABI or lib.cosim_stepper_size() != ctypes.sizeof(CosimStepper):
             raise StepperBuildError(f"{path}: ABI {lib.cosim_stepper_abi()} / struct size "
                                     f"{lib.cosim_stepper_size()}, the binding expects ABI {ABI} / "
@@ -207,6 +208,42 @@ class Stepper:
             raise FMICallException(*failure)
 
 
+LOG_SINK = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p)
+
+
+class CosimFmi2Log(ctypes.Structure):
+    """Mirror of struct CosimFmi2Log: where cosim_stepper_fmi2_logger sends one instance's messages."""
+
+    _fields_ = [("sink", ctypes.c_void_p), ("context", ctypes.c_void_p)]
+
+
+def fmi2_callbacks(add: Any, cache_dir: Path | None = None) -> Any:
+    """FMI 2 callbacks whose logger sends this instance's messages, formatted, to `add` only.
+
+    fmpy's addLoggerProxy keeps one callback for the whole process (the last
+    instance set up receives every FMI 2 instance's messages); the shim's
+    logger formats the variadic message in C and routes it by the instance's
+    componentEnvironment. Keep the returned object alive as long as the instance.
+
+    Args:
+        add: called as add(status, category bytes, message bytes) (e.g. FmuLog.add).
+        cache_dir: where the compiled shim is kept (compile_stepper).
+    """
+    import fmpy
+    from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+
+    lib = load_stepper(cache_dir)
+    callbacks = fmi2CallbackFunctions()
+    callbacks._sink = LOG_SINK(lambda _context, status, category, message: add(status, category, message))
+    callbacks._route = CosimFmi2Log(ctypes.cast(callbacks._sink, ctypes.c_void_p).value, None)
+    callbacks.logger = ctypes.cast(lib.cosim_stepper_fmi2_logger, fmi2CallbackLoggerTYPE)
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
+    callbacks.componentEnvironment = ctypes.addressof(callbacks._route)
+    return callbacks
+
+
 def _array(ctype: Any, values: Any, size: int | None = None) -> Any:
     """`values` if it is already a ctypes array of `ctype`, else a new one (from values, or `size` zeros)."""
     if isinstance(values, ctypes.Array) and values._type_ is ctype:
@@ -231,8 +268,23 @@ def _shim_component_class():
         """FmuComponent whose per-tick step is one shim call (same values, same errors).
 
         start() and stop() keep FmuComponent's per-call path; the shim uses the
-        component's own value-reference and value arrays.
+        component's own value-reference and value arrays. An FMI 2 instance logs
+        through the shim's per-instance logger (fmi2_callbacks), so its failures
+        carry its own messages even with other FMI 2 instances in the process.
         """
+
+        def _instantiate(self) -> None:
+            if self.fmi3:
+                super()._instantiate()
+                return
+            import fmpy
+            from fmpy.fmi2 import FMU2Slave
+            md = self.interface.model_description
+            self._unzipped = fmpy.extract(str(self.path))
+            self._fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._unzipped,
+                                  modelIdentifier=md.coSimulation.modelIdentifier, instanceName=self.name)
+            self._callbacks = fmi2_callbacks(self.log.add)
+            self._fmu.instantiate(callbacks=self._callbacks, loggingOn=False)
 
         def _bind(self) -> None:
             super()._bind()

@@ -86,3 +86,22 @@ def test_failure_reports_the_call_and_status():
     assert binding.Stepper.failure(stepper, binding.STEP_DO_STEP) == ("fmi3DoStep", 4)
     assert binding.Stepper.failure(stepper, binding.STEP_DONE) is None
     assert binding.Stepper.failure(stepper, binding.STEP_TERMINATE) is None
+
+
+def test_fmi2_messages_go_to_their_own_instance(fmu_dir):
+    """fmpy's logger proxy sends every FMI 2 instance's messages to the last one set up; the shim's does not."""
+    path, _ = built_fmu(fmu_dir, "Bicycle", 2)
+    inputs = bench.realistic_inputs(1)[0]
+    alone = _failure(path, True, 1, 0.0, inputs)
+    first, second = bench.make_host(path, True), bench.make_host(path, True)
+    try:
+        messages = []
+        for host in (first, second):
+            with pytest.raises(ComponentFailure) as caught:
+                host.step(1, 0.0, inputs)
+            messages.append(str(caught.value))
+    finally:
+        first.stop()
+        second.stop()
+    assert messages == [alone, alone]
+    assert alone.count("step size 0") == 1

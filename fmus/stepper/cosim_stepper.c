@@ -1,4 +1,6 @@
 /* cosim_stepper.h: one FMU co-simulation step (set inputs, doStep, get outputs) in one call. */
+#include <stdarg.h>
+#include <stdio.h>
 #include "cosim_stepper.h"
 
 #define EXPORT __attribute__((visibility("default")))
@@ -65,6 +67,22 @@ EXPORT int cosim_stepper_step(CosimStepper *stepper, double t, double h)
     stepper->status[COSIM_CALL_GET] = -1;
     stepper->stopped_by = stepper->fmi_version == 3 ? step_fmi3(stepper, t, h) : step_fmi2(stepper, t, h);
     return stepper->stopped_by;
+}
+
+EXPORT void cosim_stepper_fmi2_logger(fmi2ComponentEnvironment environment, fmi2String instance_name,
+                                      fmi2Status status, fmi2String category, fmi2String message, ...)
+{
+    const CosimFmi2Log *log = (const CosimFmi2Log *)environment;
+    char buffer[COSIM_LOG_MAX];
+    va_list args;
+
+    (void)instance_name;
+    if (log == NULL || log->sink == NULL)
+        return;
+    va_start(args, message);
+    vsnprintf(buffer, sizeof buffer, message != NULL ? message : "", args);
+    va_end(args);
+    log->sink(log->context, (int)status, category, buffer);
 }
 
 EXPORT int cosim_stepper_abi(void)

@@ -20,7 +20,7 @@
 #include "fmi2FunctionTypes.h"
 #include "fmi3FunctionTypes.h"
 
-#define COSIM_STEPPER_ABI 1
+#define COSIM_STEPPER_ABI 2
 
 /* What stopped a step (cosim_stepper_step's return value and CosimStepper.stopped_by). */
 enum {
@@ -61,6 +61,26 @@ typedef struct CosimStepper {
 
 /* One step from communication point t over h; returns stopped_by (COSIM_STEP_DONE when all went well). */
 int cosim_stepper_step(CosimStepper *stepper, double t, double h);
+
+/* FMI 2 logger that routes each instance's messages to its own sink.
+ *
+ * fmi2CallbackLogger is variadic, so an importer in Python needs a C function to
+ * format the message (fmpy's addLoggerProxy keeps one static callback for the
+ * whole process: every FMI 2 instance's messages go to the last one set up).
+ * Give cosim_stepper_fmi2_logger as callbacks.logger and a CosimFmi2Log of the
+ * instance's own as callbacks.componentEnvironment: the message is formatted
+ * (at most COSIM_LOG_MAX - 1 bytes) and handed to log->sink(log->context, ...). */
+#define COSIM_LOG_MAX 2048
+
+typedef void CosimLogSink(void *context, int status, const char *category, const char *message);
+
+typedef struct CosimFmi2Log {
+    CosimLogSink *sink;
+    void *context;
+} CosimFmi2Log;
+
+void cosim_stepper_fmi2_logger(fmi2ComponentEnvironment environment, fmi2String instance_name,
+                               fmi2Status status, fmi2String category, fmi2String message, ...);
 
 /* COSIM_STEPPER_ABI, and sizeof(CosimStepper): the binding checks its mirror of the struct. */
 int cosim_stepper_abi(void);
