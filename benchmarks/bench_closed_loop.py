@@ -19,8 +19,17 @@ time (`--clock wall`). The timers' own costs (measured on an empty step just
 before the run) are taken off. The timed run with the smallest total and the fastest untimed run
 are reported (least disturbed by other jobs on a shared machine).
 
+With `--profile`, one more untimed run goes under a profiler (benchmarks.common.profile_call;
+`--profiler pyinstrument`, the default, or `py-spy`):
+it prints the time inside each part (FMU step, controller, planner, the whole tick loop) and the
+functions with the most self time, and `--profile-out FILE` (.html or text) keeps the call tree.
+
 Run: .venv/bin/python benchmarks/bench_closed_loop.py [--seconds 20] [--repeats 5] [--clock cpu|wall]
      [--controller backstepping|feedforward|stanley|pure_pursuit] [--manoeuvre lane_keeping|lane_change]
+     [--profile] [--profile-out FILE] [--profiler pyinstrument|py-spy] [--fmu-host platform|shim]
+
+`--fmu-host shim` hosts the FMU with the C stepping shim (benchmarks/stepper_binding.py) instead
+of the platform's FmuComponent.
 """
 
 from __future__ import annotations
@@ -34,6 +43,8 @@ from pathlib import Path
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from benchmarks.common import PROFILERS, profile_call  # noqa: E402
 
 from cosim.errors import UserError  # noqa: E402
 from cosim.fmu.host import FmuComponent  # noqa: E402
@@ -125,10 +136,22 @@ def timer_cost(calls: int = 20000) -> tuple[float, float]:
     return timer.seconds / calls, max(wrapped - bare, 0.0) / calls
 
 
+FMU_HOSTS = ("platform", "shim")
+FMU_HOST = "platform"   # set from --fmu-host in main()
+
+
 def build_hosts(prepared) -> dict:
-    """The run's hosts in declaration order: the FMU and the Python components, all in-process."""
-    hosted = {plan.name: FmuComponent(plan.name, plan.path, plan.interface, plan.parameters,
-                                      plan.period_ticks) for plan in prepared.fmus}
+    """The run's hosts in declaration order: the FMU and the Python components, all in-process.
+
+    The FMU host is the platform's FmuComponent, or with FMU_HOST "shim" the
+    benchmarks' ShimFmuComponent (one C call per step, benchmarks/stepper_binding.py).
+    """
+    if FMU_HOST == "shim":
+        from benchmarks.stepper_binding import shim_fmu_component as host
+    else:
+        host = FmuComponent
+    hosted = {plan.name: host(plan.name, plan.path, plan.interface, plan.parameters,
+                              plan.period_ticks) for plan in prepared.fmus}
     hosted.update({launch.name: InprocComponent(launch) for launch in prepared.launches})
     return {name: hosted[name] for name in prepared.names}
 
@@ -157,6 +180,33 @@ def run_once(prepared, timed: bool) -> tuple[float, dict[str, tuple[float, int]]
     return elapsed, {name: (timer.seconds, timer.calls) for name, timer in timers.items()}
 
 
+def profile_run(prepared, out: str | None, profiler: str) -> None:
+    """One untimed run under the profiler: time per tick inside each part and the hottest functions."""
+    hosted = build_hosts(prepared)
+    master = build_master(prepared, hosted)
+
+    def loop() -> None:
+        for k in range(1, master.total_ticks + 1):
+            master.step_tick(k)
+
+    def step_in(*files: str):
+        return lambda function, path: function == "step" and Path(path).name in files
+
+    groups = {"FMU step (FmuComponent.step)": step_in("fmu_component.py", "stepper_binding.py"),
+              "controller (*Controller.step)": step_in("backstepping.py", "baselines.py"),
+              "planner (Planner.step, amortized)": step_in("planner.py"),
+              "tick loop (Master.step_tick)": lambda function, path: (
+                  function == "step_tick" and Path(path).name == "master.py")}
+    try:
+        master.initialize()
+        figures = profile_call(loop, units=master.total_ticks, groups=groups, out=out, profiler=profiler)
+    finally:
+        master.stop_all()
+    parts = sum(v for k, v in figures.items() if not k.startswith(("tick loop", "total")))
+    loop_us = figures.get("tick loop (Master.step_tick)", 0.0)
+    print(f"  {'master (tick loop minus the parts)':<40}{loop_us - parts:>9.2f} us/tick")
+
+
 def timed_figures(prepared, ticks: int) -> dict[str, float]:
     """One timed run as us per tick: each component, `master overhead` and `total`, timer costs taken off."""
     inner_bias, outer_cost = timer_cost()
@@ -178,11 +228,22 @@ def main() -> None:
     parser.add_argument("--clock", choices=sorted(CLOCKS), default="cpu",
                         help="cpu: this thread's CPU time (not inflated when other jobs take the core); "
                              "wall: elapsed time")
+    parser.add_argument("--profile", action="store_true",
+                        help="also profile one untimed run (pyinstrument) and print the hot spots")
+    parser.add_argument("--profile-out", metavar="FILE",
+                        help="with --profile: keep the profile there (pyinstrument: .html or text tree; "
+                             "py-spy: collapsed stacks)")
+    parser.add_argument("--profiler", choices=PROFILERS, default="pyinstrument",
+                        help="pyinstrument (in-process, inflates Python code ~2x) or py-spy (attaches "
+                             "from outside, needs ptrace rights, no slow-down)")
+    parser.add_argument("--fmu-host", choices=FMU_HOSTS, default="platform",
+                        help="platform: cosim's FmuComponent (3 ctypes calls per step); shim: the C "
+                             "stepping shim (1 call, benchmarks/stepper_binding.py)")
     args = parser.parse_args()
     if not (args.seconds >= 0.1 and args.repeats >= 1):
         parser.error(f"need --seconds >= 0.1 and --repeats >= 1, got {args.seconds} and {args.repeats}")
-    global CLOCK
-    CLOCK = CLOCKS[args.clock]
+    global CLOCK, FMU_HOST
+    CLOCK, FMU_HOST = CLOCKS[args.clock], args.fmu_host
     with tempfile.TemporaryDirectory() as tmp:
         prepared = prepare_run(load_scenario(write_scenario(Path(tmp), args.seconds, args.controller,
                                                             args.manoeuvre)))
@@ -191,10 +252,12 @@ def main() -> None:
         for _ in range(args.repeats):
             plain.append(run_once(prepared, timed=False)[0] / ticks * 1e6)
             timed.append(timed_figures(prepared, ticks))
+        if args.profile or args.profile_out:
+            profile_run(prepared, args.profile_out, args.profiler)
     best = min(timed, key=lambda figures: figures["total"])
     labels = {"vehicle": "FMU step (vehicle)", "controller": "controller (every tick)",
               "planner": "planner (amortized, 1 in 10 ticks)"}
-    print(f"{args.controller} + planner ({args.manoeuvre}) + Vehicle8DOF, {ticks} ticks of "
+    print(f"{args.controller} + planner ({args.manoeuvre}) + Vehicle8DOF ({args.fmu_host} FMU host), {ticks} ticks of "
           f"{tick * 1e3:g} ms, {args.clock} clock, best of {args.repeats} timed runs (timer costs taken off)")
     print(f"{'part':<36}{'us/tick':>10}{'share':>8}")
     for name, value in best.items():

@@ -8,13 +8,32 @@ physics differs). Real and null run in alternating blocks; the minimum over
 the repeats is printed, in microseconds, with the ratio physics / overhead,
 and, as a cross-check, the cost of the model's do_step alone timed in C.
 
+Second table (`--part shim`, on by default): the platform's per-tick host
+step (`cosim.fmu.host.FmuComponent.step`: held inputs from a mapping,
+set + doStep + get as three ctypes calls, outputs as a dict) against the
+same step through the C stepping shim (fmus/stepper, binding in
+benchmarks/stepper_binding.py: one ctypes call), alternating blocks, with
+realistic varying inputs; first both are run side by side for
+`--check-steps` ticks and their outputs must be bit-identical (exit 1 if
+not). Prints us per step (min and median over the repeats) and the ratio;
+the `raw` columns are the calls alone (no mapping in, no dict out).
+
+`--profile` profiles the per-tick host step of Vehicle8DOF (FMI 2.0), the
+platform's and the shim's (benchmarks.common.profile_call; `--profiler
+pyinstrument|py-spy`, `--profile-out FILE` keeps the first one's profile).
+
 Usage: .venv/bin/python benchmarks/bench_fmu_step.py [--steps N] [--repeats R]
+           [--part all|null|shim] [--check-steps N] [--profile] [--profiler P] [--profile-out FILE]
 """
 from __future__ import annotations
 
 import argparse
+import array
+import math
 import shutil
+import statistics
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -23,12 +42,10 @@ import fmpy
 from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
-try:
-    from cosim.fmu import build as fmu_build
-except ModuleNotFoundError:  # run as a script from a checkout without installing
-    import sys
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-    from cosim.fmu import build as fmu_build
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))   # the checkout's cosim and benchmarks
+
+from cosim.fmu import build as fmu_build  # noqa: E402
+from benchmarks.common import PROFILERS, profile_call  # noqa: E402
 
 H = 0.01
 INPUTS = {"delta": 0.01, "torque": 150.0, "wind_fx": 0.0, "wind_fy": 100.0, "mu": 1.0}
@@ -161,27 +178,204 @@ def compare(real: Path, null: Path, work: Path, steps: int, repeats: int) -> tup
     return min(samples[0]), min(samples[1])
 
 
+def realistic_inputs(count: int) -> list[dict[str, float]]:
+    """`count` ticks of varying plant inputs: steering and torque sweeps, gusts, a friction change."""
+    rows = []
+    for k in range(count):
+        t = k * H
+        rows.append({"delta": 0.04 * math.sin(0.6 * t) + 0.01 * math.sin(3.1 * t),
+                     "torque": 150.0 + 400.0 * math.sin(0.25 * t),
+                     "wind_fx": -80.0 * math.cos(0.3 * t),
+                     "wind_fy": 250.0 * math.sin(0.9 * t) ** 3,
+                     "mu": 0.85 + 0.15 * math.cos(0.05 * t)})
+    return rows
+
+
+def make_host(path: Path, shim: bool):
+    """The platform's FmuComponent (shim False) or a ShimFmuComponent of one FMU, started at t = 0."""
+    from benchmarks.stepper_binding import shim_fmu_component
+    from cosim.fmu.host import FmuComponent
+    from cosim.fmu.interface import describe_fmu
+
+    interface = describe_fmu(path)
+    host = (shim_fmu_component if shim else FmuComponent)("vehicle", path, interface, {}, 1)
+    start = realistic_inputs(1)[0]
+    host.start(0.0, {p.name: start.get(p.name, 0.0) for p in host.inputs})
+    return host
+
+
+def host_pair(path: Path):
+    """(platform FmuComponent, ShimFmuComponent) of one FMU, both started at t = 0.
+
+    Two FMI 2.0 instances in one process share fmpy's logger proxy (one static
+    callback: the last instance instantiated receives every instance's log
+    messages), so compare error messages on hosts made one after the other.
+    """
+    return make_host(path, False), make_host(path, True)
+
+
+def check_identical(path: Path, steps: int) -> str | None:
+    """Step the platform host and the shim host side by side; None if every output is bit-identical."""
+    inputs = realistic_inputs(steps + 1)
+    platform, shim = host_pair(path)
+    try:
+        for k in range(1, steps + 1):
+            a, b = platform.step(k, k * H, inputs[k]), shim.step(k, k * H, inputs[k])
+            if list(a) != list(b) or array.array("d", a.values()).tobytes() != array.array("d", b.values()).tobytes():
+                diff = {n: (a[n], b.get(n)) for n in a if a[n] != b.get(n)}
+                return f"{path.name}: outputs differ at tick {k}: {diff}"
+    finally:
+        platform.stop()
+        shim.stop()
+    return None
+
+
+def time_hosts(path: Path, steps: int, repeats: int) -> dict[str, list[float]]:
+    """us per step of each way, alternating blocks of `steps` ticks: host steps and raw calls."""
+    inputs = realistic_inputs(steps)
+    platform, shim = host_pair(path)
+    tick = [0]
+
+    def host_block(host) -> float:
+        k0 = tick[0]
+        step = host.step
+        start = time.perf_counter()
+        for j in range(steps):
+            k = k0 + j + 1
+            step(k, k * H, inputs[j])
+        return (time.perf_counter() - start) / steps * 1e6
+
+    def raw_platform(host) -> float:           # FmuComponent's bound calls, as its step makes them
+        in_val, out_val, values = host._in_val, host._out_val, [list(row.values()) for row in inputs]
+        raw_set, do_step, raw_get = host._raw_set, host._do_step, host._raw_get
+        t_prev = host._t_prev
+        start = time.perf_counter()
+        for j in range(steps):
+            t = (tick[0] + j + 1) * H
+            in_val[:] = values[j]
+            if raw_set() > 1 or do_step(t_prev, t - t_prev) > 1 or raw_get() > 1:
+                raise RuntimeError("FMI call failed")
+            out_val[:]
+            t_prev = t
+        host._t_prev = t_prev
+        return (time.perf_counter() - start) / steps * 1e6
+
+    def raw_shim(host) -> float:
+        in_val, out_val, values = host._in_val, host._out_val, [list(row.values()) for row in inputs]
+        call, address = host._shim_step, host._shim_address
+        t_prev = host._t_prev
+        start = time.perf_counter()
+        for j in range(steps):
+            t = (tick[0] + j + 1) * H
+            in_val[:] = values[j]
+            if call(address, t_prev, t - t_prev):
+                raise RuntimeError("FMI call failed")
+            out_val[:]
+            t_prev = t
+        host._t_prev = t_prev
+        return (time.perf_counter() - start) / steps * 1e6
+
+    cases = {"platform": lambda: host_block(platform), "shim": lambda: host_block(shim),
+             "raw platform": lambda: raw_platform(platform), "raw shim": lambda: raw_shim(shim)}
+    samples: dict[str, list[float]] = {label: [] for label in cases}
+    try:
+        for _ in range(repeats):
+            for label, case in cases.items():
+                samples[label].append(case())
+                if label.endswith("shim"):
+                    tick[0] += steps     # both hosts have now done the same ticks
+    finally:
+        platform.stop()
+        shim.stop()
+    return samples
+
+
+def shim_table(fmus: list[Path], steps: int, repeats: int, check_steps: int) -> bool:
+    """Print the platform-vs-shim table; False if some outputs were not bit-identical."""
+    print(f"\nper-tick host step: platform (FmuComponent.step, 3 ctypes calls) vs C shim (1 call); "
+          f"us per step, min / median of {repeats} x {steps} ticks; bit-identity over {check_steps} ticks")
+    print(f"{'FMU':22s} {'platform':>15s} {'shim':>15s} {'ratio':>6s} {'raw platform':>15s} "
+          f"{'raw shim':>15s} {'ratio':>6s}  outputs")
+    ok = True
+    for path in fmus:
+        problem = check_identical(path, check_steps)
+        ok = ok and problem is None
+        samples = time_hosts(path, steps, repeats)
+        mins = {k: min(v) for k, v in samples.items()}
+        meds = {k: statistics.median(v) for k, v in samples.items()}
+        cell = lambda k: f"{mins[k]:6.2f} / {meds[k]:6.2f}"   # noqa: E731
+        print(f"{path.name:22s} {cell('platform'):>15s} {cell('shim'):>15s} "
+              f"{meds['platform'] / meds['shim']:6.2f} {cell('raw platform'):>15s} {cell('raw shim'):>15s} "
+              f"{meds['raw platform'] / meds['raw shim']:6.2f}  {'bit-identical' if problem is None else 'DIFFER'}")
+        if problem:
+            print(f"CHECK FAILED: {problem}")
+    print("ratio = platform / shim (medians); raw = the FMI calls alone from preallocated arrays.")
+    return ok
+
+
+def profile_hosts(path: Path, steps: int, profiler: str, out: str | None) -> None:
+    """Profile `steps` host steps of each kind on one FMU."""
+    inputs = realistic_inputs(steps)
+    for label, host in zip(("platform FmuComponent.step", "shim ShimFmuComponent.step"), host_pair(path)):
+        def loop(host=host) -> None:
+            step = host.step
+            for k in range(1, steps + 1):
+                step(k, k * H, inputs[k - 1])
+
+        print(f"\n{label}, {path.name}, {steps} steps:")
+        try:
+            profile_call(loop, units=steps, unit="step", profiler=profiler, out=out, top=12,
+                         groups={"host step": lambda function, file: function == "step"
+                                 and Path(file).name in ("fmu_component.py", "stepper_binding.py")})
+        finally:
+            host.stop()
+        out = None
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=500, help="ticks per timed block")
     parser.add_argument("--repeats", type=int, default=30,
                         help="blocks per FMU, alternating real/null (minimum is shown)")
+    parser.add_argument("--part", choices=("all", "null", "shim"), default="all",
+                        help="null: the physics-vs-overhead table; shim: the platform-vs-shim table")
+    parser.add_argument("--check-steps", type=int, default=5000,
+                        help="ticks over which platform and shim outputs must be bit-identical")
+    parser.add_argument("--profile", action="store_true",
+                        help="profile the per-tick host step (platform and shim) of Vehicle8DOF FMI 2.0")
+    parser.add_argument("--profiler", choices=PROFILERS, default="pyinstrument")
+    parser.add_argument("--profile-out", metavar="FILE", help="with --profile: keep the platform's profile")
     args = parser.parse_args()
-    print(f"one {H * 1000:.0f} ms step through fmpy: set {len(INPUTS)} inputs + doStep + "
-          f"get outputs; min of {args.repeats} x {args.steps} ticks")
-    print(f"{'FMU':22s} {'step us':>8s} {'null us':>8s} {'step-null':>10s} "
-          f"{'C-loop us':>10s} {'step/null':>10s} {'C-loop/null':>12s}")
+    ok = True
     with tempfile.TemporaryDirectory(prefix="bench-fmu-") as tmp:
         work = Path(tmp)
-        for model in fmu_build.MODELS:
-            c_loop = physics_in_c(model, work)
-            for version in (2, 3):
-                real = fmu_build.build_fmu(model, version, work / "real")
-                null = build_null_twin(model, version, work)
-                t_real, t_null = compare(real, null, work, args.steps, args.repeats)
-                phys = t_real - t_null
-                print(f"{real.name:22s} {t_real:8.2f} {t_null:8.2f} {phys:10.2f} "
-                      f"{c_loop:10.2f} {t_real / t_null:10.2f} {c_loop / t_null:12.2f}")
+        if args.part in ("all", "null"):
+            null_table(work, args.steps, args.repeats)
+        fmus = [fmu_build.build_fmu(model, version, work / "real")
+                for model in ("Vehicle8DOF", "Bicycle") for version in (2, 3)]
+        if args.part in ("all", "shim"):
+            ok = shim_table(fmus, args.steps, args.repeats, args.check_steps)
+        if args.profile or args.profile_out:
+            profile_hosts(fmus[0], 100 * args.steps, args.profiler, args.profile_out)
+    if not ok:
+        sys.exit(1)
+
+
+def null_table(work: Path, steps: int, repeats: int) -> None:
+    """The physics-vs-overhead table (real FMU vs do-nothing twin through fmpy, C loop)."""
+    print(f"one {H * 1000:.0f} ms step through fmpy: set {len(INPUTS)} inputs + doStep + "
+          f"get outputs; min of {repeats} x {steps} ticks")
+    print(f"{'FMU':22s} {'step us':>8s} {'null us':>8s} {'step-null':>10s} "
+          f"{'C-loop us':>10s} {'step/null':>10s} {'C-loop/null':>12s}")
+    for model in fmu_build.MODELS:
+        c_loop = physics_in_c(model, work)
+        for version in (2, 3):
+            real = fmu_build.build_fmu(model, version, work / "real")
+            null = build_null_twin(model, version, work)
+            t_real, t_null = compare(real, null, work, steps, repeats)
+            phys = t_real - t_null
+            print(f"{real.name:22s} {t_real:8.2f} {t_null:8.2f} {phys:10.2f} "
+                  f"{c_loop:10.2f} {t_real / t_null:10.2f} {c_loop / t_null:12.2f}")
     print("null = same fmpy calls on a do-nothing twin FMU with the same variables (the "
           "overhead);\nstep-null = physics seen through fmpy (noisy on a shared machine); "
           "C-loop = MODEL.do_step\nalone in a C loop (the physics, no fmpy, no runtime checks); "
