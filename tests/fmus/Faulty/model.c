@@ -100,7 +100,7 @@ static ModelStatus initialize(double *values, void *state, double t0, const Mode
 
 static void crash_segfault(void)
 {
-    int *volatile p = NULL;  /* volatile: the compiler cannot see the null */
+    volatile int *volatile p = NULL;  /* both volatile: the store cannot be optimized away */
     *p = 42;
 }
 
