@@ -81,6 +81,7 @@ class Instance:
                 unzip_root / f"{path.stem}-{interface}-{Instance._count}"))
         self.unzip = unzip
         desc = self.md.coSimulation if interface == "CoSimulation" else self.md.modelExchange
+        desc = desc or self.md.modelExchange or self.md.coSimulation  # to try the missing one
         args = dict(guid=self.md.guid, unzipDirectory=unzip, instanceName="test",
                     modelIdentifier=desc.modelIdentifier)
         try:
