@@ -1,9 +1,12 @@
 /*
- * fmi3_api.c - the FMI 3.0 co-simulation API over the shared runtime.
+ * fmi3_api.c - the FMI 3.0 API (co-simulation and Model Exchange) over the
+ * shared runtime.
  *
  * Only translation lives here. Every function of fmi3Functions.h is exported
  * (the standard requires it); those outside co-simulation without event mode,
- * clocks or non-Float64 variables log an error and return fmi3Error.
+ * Model Exchange, and the Float*, Int*, UInt* and Boolean types (clocks,
+ * String, Binary, scheduled execution, derivatives) log an error and return
+ * fmi3Error.
  */
 #include <stdlib.h>
 
@@ -16,7 +19,13 @@
 
 static fmi3Status to_fmi3(RtStatus s)
 {
-    return s == RT_OK ? fmi3OK : (s == RT_WARNING ? fmi3Warning : fmi3Error);
+    switch (s) {
+    case RT_OK: return fmi3OK;
+    case RT_WARNING: return fmi3Warning;
+    case RT_DISCARD: return fmi3Discard;
+    case RT_FATAL: return fmi3Fatal;
+    default: return fmi3Error;
+    }
 }
 
 typedef struct {
@@ -49,12 +58,15 @@ fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String in
                                           fmi3InstanceEnvironment instanceEnvironment,
                                           fmi3LogMessageCallback logMessage)
 {
-    (void)instantiationToken; (void)resourcePath; (void)visible; (void)loggingOn;
-    if (logMessage)
-        logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                   "fmi3InstantiateModelExchange: only co-simulation is supported");
-    (void)instanceName;
-    return NULL;
+    (void)resourcePath; (void)visible;
+    Fmi3Env *env = calloc(1, sizeof *env);
+    if (!env) return NULL;
+    env->env = instanceEnvironment;
+    env->log = logMessage;
+    Instance *inst = rt_instantiate(instanceName, instantiationToken, RT_MODEL_EXCHANGE,
+                                    fmi3_log, env, loggingOn);
+    if (!inst) free(env);
+    return inst;
 }
 
 fmi3Instance fmi3InstantiateCoSimulation(
@@ -77,7 +89,8 @@ fmi3Instance fmi3InstantiateCoSimulation(
         free(env);
         return NULL;
     }
-    Instance *inst = rt_instantiate(instanceName, instantiationToken, fmi3_log, env, loggingOn);
+    Instance *inst = rt_instantiate(instanceName, instantiationToken, RT_COSIMULATION,
+                                    fmi3_log, env, loggingOn);
     if (!inst) free(env);
     return inst;
 }
@@ -120,7 +133,11 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
     return to_fmi3(rt_exit_initialization(INST));
 }
 
-fmi3Status fmi3EnterEventMode(fmi3Instance instance) { UNSUPPORTED("fmi3EnterEventMode"); }
+fmi3Status fmi3EnterEventMode(fmi3Instance instance)
+{
+    CHECK_INST();
+    return to_fmi3(rt_enter_event_mode(INST));
+}
 
 fmi3Status fmi3Terminate(fmi3Instance instance)
 {
@@ -140,7 +157,8 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
     CHECK_INST();
     if (nValues != nValueReferences)
         return to_fmi3(rt_unsupported(INST, "fmi3GetFloat64 with arrays (nValues != nValueReferences)"));
-    return to_fmi3(rt_get_float64(INST, valueReferences, nValueReferences, values));
+    return to_fmi3(rt_get(INST, "getFloat64/getReal", RT_TYPE(TYPE_FLOAT64), valueReferences,
+                          nValueReferences, values));
 }
 
 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
@@ -149,41 +167,87 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
     CHECK_INST();
     if (nValues != nValueReferences)
         return to_fmi3(rt_unsupported(INST, "fmi3SetFloat64 with arrays (nValues != nValueReferences)"));
-    return to_fmi3(rt_set_float64(INST, valueReferences, nValueReferences, values));
+    return to_fmi3(rt_set(INST, "setFloat64/setReal", RT_TYPE(TYPE_FLOAT64), valueReferences,
+                          nValueReferences, values));
 }
 
-#define NO_GET(fn, T)                                                                   \
+/* The other types travel through the runtime as doubles, in chunks (the
+   runtime guarantees that a stored value fits its variable's type). */
+#define CHUNK 64
+
+#define TYPED_GET(fn, T, type, convert)                                                 \
     fmi3Status fn(fmi3Instance instance, const fmi3ValueReference valueReferences[],    \
                   size_t nValueReferences, T values[], size_t nValues)                  \
     {                                                                                   \
-        (void)valueReferences; (void)values; (void)nValues;                             \
+        double buf[CHUNK];                                                              \
         CHECK_INST();                                                                   \
-        return to_fmi3(rt_no_such_type(INST, #fn, nValueReferences));                   \
+        if (nValues != nValueReferences)                                                \
+            return to_fmi3(rt_unsupported(INST, #fn " with arrays"));                   \
+        for (size_t i = 0; i < nValueReferences; i += CHUNK) {                          \
+            size_t k = nValueReferences - i < CHUNK ? nValueReferences - i : CHUNK;     \
+            RtStatus st = rt_get(INST, #fn, RT_TYPE(type), valueReferences + i, k, buf); \
+            if (st != RT_OK) return to_fmi3(st);                                        \
+            for (size_t j = 0; j < k; ++j) values[i + j] = convert(T, buf[j]);          \
+        }                                                                               \
+        return fmi3OK;                                                                  \
     }
-#define NO_SET(fn, T) NO_GET(fn, const T)
 
-NO_GET(fmi3GetFloat32, fmi3Float32)
-NO_GET(fmi3GetInt8, fmi3Int8)
-NO_GET(fmi3GetUInt8, fmi3UInt8)
-NO_GET(fmi3GetInt16, fmi3Int16)
-NO_GET(fmi3GetUInt16, fmi3UInt16)
-NO_GET(fmi3GetInt32, fmi3Int32)
-NO_GET(fmi3GetUInt32, fmi3UInt32)
-NO_GET(fmi3GetInt64, fmi3Int64)
-NO_GET(fmi3GetUInt64, fmi3UInt64)
-NO_GET(fmi3GetBoolean, fmi3Boolean)
-NO_GET(fmi3GetString, fmi3String)
-NO_SET(fmi3SetFloat32, fmi3Float32)
-NO_SET(fmi3SetInt8, fmi3Int8)
-NO_SET(fmi3SetUInt8, fmi3UInt8)
-NO_SET(fmi3SetInt16, fmi3Int16)
-NO_SET(fmi3SetUInt16, fmi3UInt16)
-NO_SET(fmi3SetInt32, fmi3Int32)
-NO_SET(fmi3SetUInt32, fmi3UInt32)
-NO_SET(fmi3SetInt64, fmi3Int64)
-NO_SET(fmi3SetUInt64, fmi3UInt64)
-NO_SET(fmi3SetBoolean, fmi3Boolean)
-NO_SET(fmi3SetString, fmi3String)
+#define TYPED_SET(fn, T, type)                                                          \
+    fmi3Status fn(fmi3Instance instance, const fmi3ValueReference valueReferences[],    \
+                  size_t nValueReferences, const T values[], size_t nValues)            \
+    {                                                                                   \
+        double buf[CHUNK];                                                              \
+        CHECK_INST();                                                                   \
+        if (nValues != nValueReferences)                                                \
+            return to_fmi3(rt_unsupported(INST, #fn " with arrays"));                   \
+        for (size_t i = 0; i < nValueReferences; i += CHUNK) {                          \
+            size_t k = nValueReferences - i < CHUNK ? nValueReferences - i : CHUNK;     \
+            for (size_t j = 0; j < k; ++j) buf[j] = (double)values[i + j];              \
+            RtStatus st = rt_set(INST, #fn, RT_TYPE(type), valueReferences + i, k, buf); \
+            if (st != RT_OK) return to_fmi3(st);                                        \
+        }                                                                               \
+        return fmi3OK;                                                                  \
+    }
+
+#define AS_NUMBER(T, x) ((T)(x))
+#define AS_BOOLEAN(T, x) ((x) != 0.0 ? fmi3True : fmi3False)
+
+TYPED_GET(fmi3GetFloat32, fmi3Float32, TYPE_FLOAT32, AS_NUMBER)
+TYPED_GET(fmi3GetInt8, fmi3Int8, TYPE_INT8, AS_NUMBER)
+TYPED_GET(fmi3GetUInt8, fmi3UInt8, TYPE_UINT8, AS_NUMBER)
+TYPED_GET(fmi3GetInt16, fmi3Int16, TYPE_INT16, AS_NUMBER)
+TYPED_GET(fmi3GetUInt16, fmi3UInt16, TYPE_UINT16, AS_NUMBER)
+TYPED_GET(fmi3GetInt32, fmi3Int32, TYPE_INT32, AS_NUMBER)
+TYPED_GET(fmi3GetUInt32, fmi3UInt32, TYPE_UINT32, AS_NUMBER)
+TYPED_GET(fmi3GetInt64, fmi3Int64, TYPE_INT64, AS_NUMBER)
+TYPED_GET(fmi3GetUInt64, fmi3UInt64, TYPE_UINT64, AS_NUMBER)
+TYPED_GET(fmi3GetBoolean, fmi3Boolean, TYPE_BOOLEAN, AS_BOOLEAN)
+TYPED_SET(fmi3SetFloat32, fmi3Float32, TYPE_FLOAT32)
+TYPED_SET(fmi3SetInt8, fmi3Int8, TYPE_INT8)
+TYPED_SET(fmi3SetUInt8, fmi3UInt8, TYPE_UINT8)
+TYPED_SET(fmi3SetInt16, fmi3Int16, TYPE_INT16)
+TYPED_SET(fmi3SetUInt16, fmi3UInt16, TYPE_UINT16)
+TYPED_SET(fmi3SetInt32, fmi3Int32, TYPE_INT32)
+TYPED_SET(fmi3SetUInt32, fmi3UInt32, TYPE_UINT32)
+TYPED_SET(fmi3SetInt64, fmi3Int64, TYPE_INT64)
+TYPED_SET(fmi3SetUInt64, fmi3UInt64, TYPE_UINT64)
+TYPED_SET(fmi3SetBoolean, fmi3Boolean, TYPE_BOOLEAN)
+
+fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                         size_t nValueReferences, fmi3String values[], size_t nValues)
+{
+    (void)valueReferences; (void)values; (void)nValues;
+    CHECK_INST();
+    return to_fmi3(rt_no_such_type(INST, "fmi3GetString", nValueReferences));
+}
+
+fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                         size_t nValueReferences, const fmi3String values[], size_t nValues)
+{
+    (void)valueReferences; (void)values; (void)nValues;
+    CHECK_INST();
+    return to_fmi3(rt_no_such_type(INST, "fmi3SetString", nValueReferences));
+}
 
 fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                          size_t nValueReferences, size_t valueSizes[], fmi3Binary values[],
@@ -364,50 +428,93 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
                                     fmi3Boolean *valuesOfContinuousStatesChanged,
                                     fmi3Boolean *nextEventTimeDefined, fmi3Float64 *nextEventTime)
 {
-    (void)discreteStatesNeedUpdate; (void)terminateSimulation;
-    (void)nominalsOfContinuousStatesChanged; (void)valuesOfContinuousStatesChanged;
-    (void)nextEventTimeDefined; (void)nextEventTime;
-    UNSUPPORTED("fmi3UpdateDiscreteStates");
+    RtEventInfo info;
+    CHECK_INST();
+    RtStatus st = rt_update_discrete_states(INST, &info);
+    if (st == RT_OK || st == RT_WARNING) {
+        if (discreteStatesNeedUpdate) *discreteStatesNeedUpdate = info.needs_update ? fmi3True : fmi3False;
+        if (terminateSimulation) *terminateSimulation = info.terminate ? fmi3True : fmi3False;
+        if (nominalsOfContinuousStatesChanged) *nominalsOfContinuousStatesChanged = fmi3False;
+        if (valuesOfContinuousStatesChanged)
+            *valuesOfContinuousStatesChanged = info.states_changed ? fmi3True : fmi3False;
+        if (nextEventTimeDefined) *nextEventTimeDefined = info.next_time_defined ? fmi3True : fmi3False;
+        if (nextEventTime) *nextEventTime = info.next_time;
+    }
+    return to_fmi3(st);
 }
 
-fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) { UNSUPPORTED("fmi3EnterContinuousTimeMode"); }
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance)
+{
+    CHECK_INST();
+    return to_fmi3(rt_enter_continuous_time_mode(INST));
+}
 
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance,
                                        fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation)
 {
-    (void)noSetFMUStatePriorToCurrentPoint; (void)enterEventMode; (void)terminateSimulation;
-    UNSUPPORTED("fmi3CompletedIntegratorStep");
+    int enter = 0, terminate = 0;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    CHECK_INST();
+    RtStatus st = rt_completed_integrator_step(INST, &enter, &terminate);
+    if (enterEventMode) *enterEventMode = enter ? fmi3True : fmi3False;
+    if (terminateSimulation) *terminateSimulation = terminate ? fmi3True : fmi3False;
+    return to_fmi3(st);
 }
 
 fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time)
 {
-    (void)time;
-    UNSUPPORTED("fmi3SetTime");
+    CHECK_INST();
+    return to_fmi3(rt_set_time(INST, time));
 }
 
-#define NO_ME_ARRAY(fn, T)                                                              \
-    fmi3Status fn(fmi3Instance instance, T values[], size_t n)                          \
-    {                                                                                   \
-        (void)values; (void)n;                                                          \
-        UNSUPPORTED(#fn);                                                               \
-    }
-NO_ME_ARRAY(fmi3SetContinuousStates, const fmi3Float64)
-NO_ME_ARRAY(fmi3GetContinuousStateDerivatives, fmi3Float64)
-NO_ME_ARRAY(fmi3GetEventIndicators, fmi3Float64)
-NO_ME_ARRAY(fmi3GetContinuousStates, fmi3Float64)
-NO_ME_ARRAY(fmi3GetNominalsOfContinuousStates, fmi3Float64)
+fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
+                                   size_t nContinuousStates)
+{
+    CHECK_INST();
+    return to_fmi3(rt_set_continuous_states(INST, continuousStates, nContinuousStates));
+}
+
+fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
+                                             size_t nContinuousStates)
+{
+    CHECK_INST();
+    return to_fmi3(rt_get_derivatives(INST, derivatives, nContinuousStates));
+}
+
+fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[],
+                                  size_t nEventIndicators)
+{
+    CHECK_INST();
+    return to_fmi3(rt_get_event_indicators(INST, eventIndicators, nEventIndicators));
+}
+
+fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
+                                   size_t nContinuousStates)
+{
+    CHECK_INST();
+    return to_fmi3(rt_get_continuous_states(INST, continuousStates, nContinuousStates));
+}
+
+fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
+                                             size_t nContinuousStates)
+{
+    CHECK_INST();
+    return to_fmi3(rt_get_nominals(INST, nominals, nContinuousStates));
+}
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators)
 {
-    (void)nEventIndicators;
-    UNSUPPORTED("fmi3GetNumberOfEventIndicators");
+    CHECK_INST();
+    if (nEventIndicators) *nEventIndicators = rt_n_event_indicators();
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates)
 {
-    (void)nContinuousStates;
-    UNSUPPORTED("fmi3GetNumberOfContinuousStates");
+    CHECK_INST();
+    if (nContinuousStates) *nContinuousStates = rt_n_states();
+    return fmi3OK;
 }
 
 fmi3Status fmi3EnterStepMode(fmi3Instance instance) { UNSUPPORTED("fmi3EnterStepMode (no event mode)"); }
@@ -430,7 +537,8 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     CHECK_INST();
     fmi3Status st = to_fmi3(rt_do_step(INST, currentCommunicationPoint, communicationStepSize));
     if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
-    if (terminateSimulation) *terminateSimulation = fmi3False;
+    /* A model's request to end the simulation: status OK (or Warning), the step is done. */
+    if (terminateSimulation) *terminateSimulation = INST->terminate_requested ? fmi3True : fmi3False;
     if (earlyReturn) *earlyReturn = fmi3False;
     if (lastSuccessfulTime) *lastSuccessfulTime = INST->time;
     return st;

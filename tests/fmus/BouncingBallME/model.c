@@ -1,0 +1,1 @@
+../BouncingBall/model.c
