@@ -4,13 +4,15 @@ Lane numbering: lane 0 is the reference line itself (the driving lane of
 right-hand traffic) and lane i lies i lane widths to its left, so the
 reference line's geometry is exactly the path driven in lane 0. A point is
 described in road coordinates by the reference arc length s and a lateral
-offset d (left positive); `frenet_to_world` turns an offset profile d(s) into a
-world trajectory with exact heading, curvature and arc-length rate.
+offset d (left positive); `frenet_to_world` (controllers.road.frenet, re-exported
+here) turns an offset profile d(s) into a world trajectory with exact heading,
+curvature and arc-length rate.
 
 Builders give the paper's roads; `road_from_spec` reads the YAML form:
     road: satory_standin
     road: {builder: two_lane, length: 600, radius: 200}
     road: {reference: {segments: [...]}, lanes: 2, lane_width: 3.5}
+    road: {opendrive: track.xodr, road: "1", lane: -1}    # controllers.road.opendrive
 """
 
 from __future__ import annotations
@@ -20,7 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from controllers.road.frenet import frenet_from_base, frenet_to_world  # noqa: F401 (re-exported)
 from controllers.road.geometry import Path, SpecError, spec_number
+from controllers.road.opendrive import lane_from_opendrive
 
 
 @dataclass(frozen=True)
@@ -72,51 +76,6 @@ class Road:
     def edges(self) -> tuple[float, float]:
         """Lateral offsets of the right and left road edges, m."""
         return -0.5 * self.lane_width, (self.lanes - 0.5) * self.lane_width
-
-
-def frenet_to_world(path: Path, s, d, dd, ddd):
-    """World trajectory of the offset profile d(s) along a reference path.
-
-    Args:
-        path: the reference line.
-        s: reference arc lengths (array).
-        d, dd, ddd: lateral offset and its first and second derivative in s.
-
-    Returns:
-        x, y, psi, kappa of the trajectory and g = d sigma / ds, the rate of
-        its own arc length sigma per reference arc length.
-    """
-    s = np.asarray(s, dtype=float)
-    x0, y0, psi0, k = path.evaluate(s)
-    return frenet_from_base((x0, y0, psi0, k, path.dkappa(s)), d, dd, ddd, s)
-
-
-def frenet_from_base(base, d, dd, ddd, s=None, trig=None):
-    """`frenet_to_world` on reference samples already evaluated.
-
-    Args:
-        base: (x, y, psi, kappa, dkappa/ds) of the reference line at the stations.
-        d, dd, ddd: lateral offset and its first two derivatives in s there.
-        s: the stations (only for error messages).
-        trig: (sin psi, cos psi) of the reference there if known (saves their
-            evaluation at every planner step; the same values bit for bit).
-    """
-    x0, y0, psi0, k, dk = base
-    d, dd, ddd = (np.asarray(a, dtype=float) for a in (d, dd, ddd))
-    a = 1.0 - k * d
-    if (a <= 0.0).any():
-        bad = int(np.argmax(a <= 0.0))
-        where = f" at s = {s[bad]:.3f} m" if s is not None else ""
-        raise SpecError(f"lateral offset {d[bad]:.3f} m{where} crosses the road's "
-                        f"centre of curvature (radius {1.0 / k[bad]:.3f} m)")
-    a1 = -(dk * d + k * dd)
-    g = np.hypot(a, dd)
-    sin_psi, cos_psi = (np.sin(psi0), np.cos(psi0)) if trig is None else trig
-    x = x0 - d * sin_psi
-    y = y0 + d * cos_psi
-    psi = psi0 + np.arctan2(dd, a)
-    kappa = (a * (a * k + ddd) - dd * (a1 - dd * k)) / g ** 3
-    return x, y, psi, kappa, g
 
 
 def _turn(radius: float, angle_deg: float, transition: float) -> list[tuple[float, float, float]]:
@@ -193,8 +152,9 @@ def road_from_spec(spec, where: str = "road") -> Road:
     """A Road from its YAML form (see the module docstring).
 
     Args:
-        spec: a builder name, {builder: name, **its keyword arguments}, or
-            {reference: <path spec>, lanes: n, lane_width: w}.
+        spec: a builder name, {builder: name, **its keyword arguments},
+            {reference: <path spec>, lanes: n, lane_width: w}, or
+            {opendrive: file, road: id, lane: id, ...} (controllers.road.opendrive).
         where: location of the spec, for error messages.
     """
     if isinstance(spec, str):
@@ -210,6 +170,9 @@ def road_from_spec(spec, where: str = "road") -> Road:
             return BUILDERS[name](**kwargs)
         except TypeError as exc:
             raise SpecError(f"{where}: bad parameters for {name}: {exc}") from None
+    if "opendrive" in spec:
+        path, lanes, width = lane_from_opendrive(spec, where)
+        return Road(path, lanes=lanes, lane_width=width)
     extra = set(spec) - {"reference", "lanes", "lane_width"}
     if "reference" not in spec or extra:
         raise SpecError(f"{where}: expected keys reference, lanes, lane_width, got {sorted(spec)}")

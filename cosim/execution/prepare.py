@@ -82,8 +82,28 @@ def plan_launches(scenario: Any, import_classes: bool = True) -> list[PythonComp
             cls = import_component_class(spec.python, name)
             default = getattr(cls, "default_period", None)
         period = scenario.period_ticks(name, default)
-        launches.append(PythonComponentLaunch(name, spec.python, dict(spec.parameters), period))
+        parameters = with_data_files(dict(spec.parameters), scenario.base_dir)
+        launches.append(PythonComponentLaunch(name, spec.python, parameters, period))
     return launches
+
+
+DATA_FILE_KEYS = ("opendrive",)  # parameter keys, at any depth, whose value is a data file
+
+
+def with_data_files(parameters: Any, base_dir: Path) -> Any:
+    """The parameters with each relative data-file path resolved against the scenario's folder.
+
+    A component runs in another process (or on another host) whose working
+    folder is not the scenario's: paths such as a planner road's `opendrive:
+    track.xodr` must reach it absolute, like FMU paths.
+    """
+    if isinstance(parameters, dict):
+        return {k: (str(base_dir / v) if k in DATA_FILE_KEYS and isinstance(v, str)
+                    and not Path(v).is_absolute() else with_data_files(v, base_dir))
+                for k, v in parameters.items()}
+    if isinstance(parameters, list):
+        return [with_data_files(v, base_dir) for v in parameters]
+    return parameters
 
 
 def plan_fmus(scenario: Any) -> list[FmuPlan]:

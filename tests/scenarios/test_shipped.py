@@ -28,7 +28,7 @@ from tests.helpers.paths import SCENARIOS_DIR
 
 SCENARIOS = SCENARIOS_DIR
 EXPECTED = {"satory_nominal", "satory_disturbed", "lane_keeping", "lane_change",
-            "obstacle_avoidance", "obstacle_blocked", "friction_drop", "iso3888_2", "open_loop"}
+            "obstacle_avoidance", "obstacle_blocked", "friction_drop", "iso3888_2", "open_loop", "opendrive_loop"}
 
 
 def _run(tmp_path: Path, name: str, overrides: list[str]):
@@ -97,6 +97,21 @@ def test_swapping_one_line_of_the_file_swaps_the_controller(tmp_path, name):
     assert scenario.components["controller"].python == CONTROLLERS[name]["python"]
     assert scenario.components["controller"].parameters == CONTROLLERS[name]["parameters"]
     validate_scenario(scenario)
+
+
+def test_opendrive_loop_drives_the_lane_of_the_file(tmp_path):
+    """The first 45 s (straight, first clothoid-arc-clothoid turn): on the centre of lane -2."""
+    from controllers.road.opendrive import read_road
+
+    run = _run(tmp_path, "opendrive_loop", ["duration=45"])
+    road = read_road(SCENARIOS / "opendrive_loop.xodr", "1")
+    s = _sig(run, "planner.s_vehicle")            # on a straight start, reference s ~ lane s
+    assert s[-1] > 400.0                          # through the first turn (it ends at s = 473 m)
+    x, y, psi, _, _ = road.plan.evaluate(np.linspace(0.0, 700.0, 28001))
+    cx, cy = x + 5.25 * np.sin(psi), y - 5.25 * np.cos(psi)   # lane -2 centre: 1.5 widths right
+    vx, vy = _sig(run, "vehicle.x")[::50], _sig(run, "vehicle.y")[::50]
+    gap = np.min(np.hypot(vx[:, None] - cx[None, :], vy[:, None] - cy[None, :]), axis=1)
+    assert gap.max() < 0.03                       # within 3 cm of the file's lane centre
 
 
 # ---- ISO 3888-2 layout --------------------------------------------------------------
