@@ -1,5 +1,5 @@
 """The `cosim` command line: the typer app, with the subcommands registered from
-one module per group (run; validate, schema; build-fmus; recover;
+one module per group (run; validate, schema; build-fmus; recover; mcap;
 worker/workers/router; plot/compare/sweep; watch), and the entry point `main`.
 
 Every user error (bad scenario, FMU, wiring, parameters) prints one clear
@@ -19,16 +19,20 @@ from collections.abc import Sequence  # noqa: E402
 
 import typer  # noqa: E402
 
-from cosim.cli import analysis, distributed, fmus, results, run, scenario, watch  # noqa: E402
+from cosim.cli import analysis, distributed, fmus, foxglove, results, run, scenario, watch  # noqa: E402
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Co-simulation of closed-loop vehicle control (FMU plants, Python components).")
-for _commands in (run, scenario, fmus, results, distributed, analysis, watch):
+for _commands in (run, scenario, fmus, results, foxglove, distributed, analysis, watch):
     _commands.register(app)
 
 
+FOXGLOVE_PORT = 8765  # Foxglove's usual port (cosim.foxglove.live.DEFAULT_PORT; not imported: no SDK load here)
+
+
 def normalize_realtime(argv: Sequence[str]) -> list[str]:
-    """Give a bare `--realtime` its default factor 1.0 (click has no optional values).
+    """Give a bare `--realtime` its default factor 1.0 and a bare `--foxglove` its port 8765
+    (click has no optional values).
 
     Args:
         argv: command-line arguments after the program name.
@@ -37,8 +41,11 @@ def normalize_realtime(argv: Sequence[str]) -> list[str]:
     result: list[str] = []
     for i, arg in enumerate(args):
         result.append(arg)
-        if arg == "--realtime" and not _is_number(args[i + 1] if i + 1 < len(args) else None):
+        following = args[i + 1] if i + 1 < len(args) else None
+        if arg == "--realtime" and not _is_number(following):
             result.append("1.0")
+        if arg == "--foxglove" and not (following or "").isdigit():
+            result.append(str(FOXGLOVE_PORT))
     return result
 
 

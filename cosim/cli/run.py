@@ -55,6 +55,11 @@ def run(
     deadline: float = typer.Option(10.0, "--deadline", help="per-exchange deadline of remote components, s"),
     prestart: bool = typer.Option(True, "--prestart/--no-prestart",
                                   help="start component processes while the scenario loads"),
+    mcap: bool = typer.Option(False, "--mcap", help="also write run.mcap (as record: {mcap: true})"),
+    foxglove: Optional[int] = typer.Option(
+        None, "--foxglove", help="serve the run live to Foxglove on PORT (bare --foxglove: 8765)"),
+    foxglove_host: str = typer.Option("127.0.0.1", "--foxglove-host",
+                                      help="loopback address of the Foxglove server"),
 ) -> None:
     """Run a scenario and write its run folder."""
     from cosim.execution.run import check_run_options
@@ -64,6 +69,9 @@ def run(
     interrupts.restore()  # from here a Ctrl-C is handled below and by the run
     try:
         check_run_options(transport, realtime)  # option errors come before anything else
+        if mcap:
+            from cosim.cli.foxglove import require_foxglove
+            require_foxglove("--mcap")
     except UserError as error:
         raise user_error_exit(error) from None
     early = None
@@ -73,8 +81,8 @@ def run(
 
             early = prestart_components(scenario)  # their start overlaps the scenario's load
         result = _load_and_run(scenario, set_, out, (deploy, listen, connect), clock,
-                               transport=transport, realtime=realtime, place=place,
-                               deadline_s=deadline, prestart=early)
+                               (foxglove, foxglove_host), transport=transport, realtime=realtime,
+                               place=place, deadline_s=deadline, prestart=early)
     except UserError as error:
         raise user_error_exit(error) from None
     except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
@@ -86,7 +94,7 @@ def run(
     finally:
         if early is not None:
             early.close()
-    _finish_run(result, figures)
+    _finish_run(result, figures, mcap)
 
 
 def _interrupted_exit(stop_error: str | None = None) -> typer.Exit:
@@ -105,7 +113,7 @@ def _interrupted_exit(stop_error: str | None = None) -> typer.Exit:
 
 def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path],
                   endpoints: tuple[Optional[Path], list[str], list[str]], clock: Any,
-                  **run_options: Any) -> Any:
+                  foxglove: tuple[Optional[int], str] = (None, ""), **run_options: Any) -> Any:
     """Load the scenario, name its run folder, then run it (SIGTERM ends it cleanly).
 
     Args:
@@ -114,10 +122,12 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
         out: the run folder, or None for a fresh one under runs/.
         endpoints: `--deploy` file, `--listen` and `--connect` values.
         clock: the cosim.engine.startup.StartupClock of the command (marks "scenario_loaded").
+        foxglove: `--foxglove` port (None: no live server) and `--foxglove-host`.
         run_options: passed on to `cosim.execution.run.run_scenario`.
     Returns:
         The cosim.execution.run.RunResult.
     """
+    from cosim.cli.foxglove import live_server
     from cosim.execution.run import run_scenario
     from cosim.scenario.loader import load_scenario
 
@@ -128,10 +138,15 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
     if endpoints[0] is not None or endpoints[1] or endpoints[2]:
         from cosim.cli.distributed import load_settings
         settings = load_settings(*endpoints)
-    with _sigterm_interrupts():
-        return run_scenario(loaded, folder, progress=sys.stdout.isatty(), deploy=settings,
-                            clock=clock, on_live=_print_live, on_folder=_print_folder,
-                            **run_options)
+    if loaded.record.mcap:
+        from cosim.cli.foxglove import require_foxglove
+        require_foxglove(loaded.where(("record", "mcap")))
+    with _sigterm_interrupts(), live_server(loaded, *foxglove) as observers:
+        result = run_scenario(loaded, folder, progress=sys.stdout.isatty(), deploy=settings,
+                              clock=clock, on_live=_print_live, on_folder=_print_folder,
+                              observers=observers, **run_options)
+    result.mcap = loaded.record.mcap
+    return result
 
 
 def _print_folder(folder: Path) -> None:
@@ -139,18 +154,23 @@ def _print_folder(folder: Path) -> None:
     print(f"run folder: {folder}", flush=True)
 
 
-def _finish_run(result: Any, figures: bool) -> None:
+def _finish_run(result: Any, figures: bool, mcap: bool = False) -> None:
     """Analyse the run folder and print the summary; a failed run exits with status 1.
 
     Args:
         result: the cosim.execution.run.RunResult.
         figures: draw the run's figures.
+        mcap: write run.mcap (also when the scenario's record.mcap is set).
     """
     from cosim.cli.summary import print_summary
 
     if result.ticks > 0:
         for note in analyse_run_folder(result, figures):
             print(note)
+        if mcap or getattr(result, "mcap", False):
+            from cosim.cli.foxglove import write_mcap_note
+            for note in write_mcap_note(result.out_dir):
+                print(note)
     print_summary(result)  # run table, then metrics table
     if result.status != "ok":
         Console(stderr=True, highlight=False, soft_wrap=True).print(

@@ -71,7 +71,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  deploy: Any = None, clock: StartupClock | None = None,
                  on_live: Callable[[str, str], None] | None = None,
                  prestart: Any = None,
-                 on_folder: Callable[[Path], None] | None = None) -> RunResult:
+                 on_folder: Callable[[Path], None] | None = None,
+                 observers: Sequence[Any] = ()) -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -97,6 +98,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         on_folder: called with the run folder once it is created (after the
             checks that need no component running); from then on a run that
             fails before tick 0 leaves a manifest.json with status "failed".
+        observers: more master observers (e.g. cosim.foxglove.live.FoxgloveLive),
+            after the recorder; they must only read the signal store.
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -126,7 +129,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                                    placement, deploy)
             hosted = _host_components(prepared, remote, clock)
             return _execute(prepared, hosted, remote, out, transport, run_id, realtime,
-                            progress, clock)
+                            progress, clock, observers)
         except BaseException as exc:  # the announced folder says why the run never started
             located = locate_parameter_problem(scenario, exc)
             write_start_failure(out, scenario, run_id, transport,
@@ -277,14 +280,14 @@ class _LivePublisher:
 
 def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Path,
              transport: str, run_id: str, realtime: float | None, progress: bool,
-             clock: StartupClock) -> RunResult:
+             clock: StartupClock, extra_observers: Sequence[Any] = ()) -> RunResult:
     """Run the master over the hosted components and write the run folder."""
     from cosim.results.manifest import base_manifest, finish_manifest
     from cosim.results.recorder import write_json
 
     scenario = prepared.scenario
     master, recorder, pacer, bar = _build_master(scenario, hosted, remote, out,
-                                                 realtime, progress)
+                                                 realtime, progress, extra_observers)
     manifest = base_manifest(scenario, prepared, hosted, transport, run_id, master.order)
     live = None
     if remote is not None:  # where a watcher connects to see the run live
@@ -323,7 +326,8 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
 
 
 def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
-                  realtime: float | None, progress: bool) -> tuple[Master, Recorder, Any, Any]:
+                  realtime: float | None, progress: bool,
+                  extra_observers: Sequence[Any] = ()) -> tuple[Master, Recorder, Any, Any]:
     """Wire the hosted components and attach the observers."""
     from cosim.fmu.host import FmuComponent
     from cosim.engine.master import Master
@@ -347,6 +351,7 @@ def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
     observers: list[Any] = [o for o in (recorder, pacer, bar) if o is not None]
     if getattr(remote, "live", None) is not None:
         observers.append(_LivePublisher(remote.live))
+    observers.extend(extra_observers)
     master = Master(hosted, edges, scenario.tick, scenario.total_ticks,
                     scenario.start_time, observers)
     return master, recorder, pacer, bar

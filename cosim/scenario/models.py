@@ -170,11 +170,12 @@ ConnectionEntry = Annotated[
 
 
 class RecordSpec(BaseModel):
-    """Which signals to record: fnmatch globs over "component.signal"."""
+    """Which signals to record: fnmatch globs over "component.signal"; mcap: also write run.mcap."""
 
     model_config = STRICT
     include: list[str] = ["*"]
     exclude: list[str] = []
+    mcap: bool = False   # run.mcap beside signals.csv after the run (cosim.foxglove.mcap_export)
 
     def selects(self, signal: str) -> bool:
         """True if `signal` ("component.signal") matches an include and no exclude glob."""
