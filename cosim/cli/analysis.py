@@ -127,7 +127,7 @@ def _print_summary(result) -> None:
         console.print(f"[yellow]failed:[/yellow] {escape(failure.error)}", markup=True, highlight=False)
 
 
-def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
+def sweep(scenario: str = typer.Argument(..., help="scenario YAML file, or a shipped scenario's name"),
           vary: list[str] = typer.Option(..., "--vary", help="PATH=LOW:HIGH, repeatable"),
           sets: Optional[list[str]] = typer.Option(None, "--set",
                                                    help="PATH=VALUE fixed for every sample, repeatable"),
@@ -140,13 +140,21 @@ def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
                                                   "sweeps/<name>-s<seed>-n<samples>-<UTC time>)"),
           transport: str = typer.Option("inproc", "--transport", help="inproc | zenoh, for each run"),
           method: str = typer.Option("lhs", "--method", help="lhs | uniform")) -> None:
-    """Monte-Carlo runs of a scenario on Dask; the distribution of every metric."""
-    from cosim.execution.sweep import run_sweep
+    """Monte-Carlo runs of a scenario on Dask; the distribution of every metric.
 
-    out_dir = out if out is not None else stamped_folder(
-        SWEEP_OUTPUTS, f"{scenario.stem}-s{seed}-n{samples}")
+    Example: cosim sweep lane_change --vary 'components.controller.parameters.ke=2:6' --samples 4
+    """
+    from cosim.execution.sweep import run_sweep
+    from cosim.scenario.shipped import resolve_scenario
+
     try:
-        result = run_sweep(scenario, vary, samples, seed=seed, scheduler=scheduler,
+        scenario_file = resolve_scenario(scenario)
+    except UserError as exc:
+        raise _fail(exc) from None
+    out_dir = out if out is not None else stamped_folder(
+        SWEEP_OUTPUTS, f"{scenario_file.stem}-s{seed}-n{samples}")
+    try:
+        result = run_sweep(scenario_file, vary, samples, seed=seed, scheduler=scheduler,
                            out_dir=out_dir, transport=transport, method=method,
                            sets=sets or ())
     except UserError as exc:
