@@ -71,6 +71,19 @@ def listing() -> str:
     return "\n".join(lines)
 
 
+def find_scenario(scenario: str | Path) -> Path:
+    """The shipped scenario an argument names when no such file exists, else the argument as a path.
+
+    Args:
+        scenario: a path to a YAML file, or a shipped name ("lane_change").
+    """
+    path = Path(scenario)
+    stem = path.stem if path.suffix in SUFFIXES else path.name
+    if path.parent == Path(".") and not path.exists():
+        return shipped_scenarios().get(stem, path)
+    return path
+
+
 def resolve_scenario(scenario: str | Path) -> Path:
     """The scenario file an argument names: an existing file, else a shipped scenario.
 
@@ -79,14 +92,12 @@ def resolve_scenario(scenario: str | Path) -> Path:
     Raises:
         ScenarioError: neither a file nor a shipped name (the shipped names are listed).
     """
-    path = Path(scenario)
+    path = find_scenario(scenario)
     if path.is_file():
         return path
     text = str(scenario)
     shipped = shipped_scenarios()
     stem = path.stem if path.suffix in SUFFIXES else path.name
-    if path.parent == Path(".") and stem in shipped and not path.exists():
-        return shipped[stem]
     names = ", ".join(shipped) or "none"
     hint = did_you_mean(stem, shipped) if path.parent == Path(".") else ""
     raise ScenarioError(text, [Problem("", None, f"scenario file not found, nor a shipped "
