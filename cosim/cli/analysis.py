@@ -17,7 +17,6 @@ one line on stderr and exits with status 2, without a traceback.
 
 from __future__ import annotations
 
-import datetime
 from pathlib import Path
 from typing import Optional
 
@@ -28,6 +27,7 @@ from rich.table import Table
 
 from cosim.cli.common import user_error_exit as _fail
 from cosim.errors import UserError
+from cosim.results.folders import stamped_folder
 
 
 def plot(run_dir: Path = typer.Argument(..., help="run folder"),
@@ -49,24 +49,6 @@ COMPARE_OUTPUTS = "comparisons"  # default parent of `cosim compare` outputs
 SWEEP_OUTPUTS = "sweeps"  # default parent of `cosim sweep` outputs
 # files that mark a folder as a compare or a sweep output, not a run folder
 _OUTPUT_MARKERS = {"compare_metrics.csv": "a cosim compare output", "sweep.json": "a cosim sweep output"}
-
-
-def stamped_folder(parent: str | Path, name: str,
-                   now: datetime.datetime | None = None) -> Path:
-    """A fresh folder parent/<name>-<UTC timestamp> (a suffix -2, -3... when it exists).
-
-    Args:
-        parent: the folder to create it in (e.g. "runs", "comparisons").
-        name: the leading part of the folder's name.
-        now: the time to stamp (default: now, UTC).
-    """
-    now = now or datetime.datetime.now(datetime.timezone.utc)
-    base = Path(parent) / f"{name}-{now.strftime('%Y%m%dT%H%M%SZ')}"
-    candidate, n = base, 1
-    while candidate.exists():
-        n += 1
-        candidate = base.with_name(f"{base.name}-{n}")
-    return candidate
 
 
 def output_folder_kind(folder: Path) -> str | None:
@@ -127,7 +109,7 @@ def _print_summary(result) -> None:
         console.print(f"[yellow]failed:[/yellow] {escape(failure.error)}", markup=True, highlight=False)
 
 
-def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
+def sweep(scenario: str = typer.Argument(..., help="scenario YAML file, or a shipped scenario's name"),
           vary: list[str] = typer.Option(..., "--vary", help="PATH=LOW:HIGH, repeatable"),
           sets: Optional[list[str]] = typer.Option(None, "--set",
                                                    help="PATH=VALUE fixed for every sample, repeatable"),
@@ -140,13 +122,18 @@ def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
                                                   "sweeps/<name>-s<seed>-n<samples>-<UTC time>)"),
           transport: str = typer.Option("inproc", "--transport", help="inproc | zenoh, for each run"),
           method: str = typer.Option("lhs", "--method", help="lhs | uniform")) -> None:
-    """Monte-Carlo runs of a scenario on Dask; the distribution of every metric."""
-    from cosim.execution.sweep import run_sweep
+    """Monte-Carlo runs of a scenario on Dask; the distribution of every metric.
 
+    Example: cosim sweep lane_change --vary 'components.controller.parameters.ke=2:6' --samples 4
+    """
+    from cosim.execution.sweep import run_sweep
+    from cosim.scenario.shipped import find_scenario
+
+    scenario_file = find_scenario(scenario)
     out_dir = out if out is not None else stamped_folder(
-        SWEEP_OUTPUTS, f"{scenario.stem}-s{seed}-n{samples}")
+        SWEEP_OUTPUTS, f"{scenario_file.stem}-s{seed}-n{samples}")
     try:
-        result = run_sweep(scenario, vary, samples, seed=seed, scheduler=scheduler,
+        result = run_sweep(scenario_file, vary, samples, seed=seed, scheduler=scheduler,
                            out_dir=out_dir, transport=transport, method=method,
                            sets=sets or ())
     except UserError as exc:

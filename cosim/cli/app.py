@@ -1,6 +1,8 @@
 """The `cosim` command line: the typer app, with the subcommands registered from
-one module per group (run; validate, schema; build-fmus; recover; mcap;
+one module per group (run; validate, schema, scenarios; build-fmus; recover; mcap;
 worker/workers/router; plot/compare/sweep; watch), and the entry point `main`.
+`-h`/`--help` everywhere, `--version`, and shell completion
+(`cosim --install-completion`, `cosim --show-completion`).
 
 Every user error (bad scenario, FMU, wiring, parameters) prints one clear
 message on stderr and exits with status 2, without a traceback; a run whose
@@ -21,10 +23,28 @@ import typer  # noqa: E402
 
 from cosim.cli import analysis, distributed, fmus, foxglove, results, run, scenario, watch  # noqa: E402
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
-                  help="Co-simulation of closed-loop vehicle control (FMU plants, Python components).")
+app = typer.Typer(add_completion=True, no_args_is_help=True,
+                  context_settings={"help_option_names": ["-h", "--help"]},
+                  help="Co-simulation of closed-loop vehicle control (FMU plants, Python components)."
+                       "\n\nStart with: cosim scenarios, then cosim run lane_change."
+                       " Shell completion: cosim --install-completion.")
 for _commands in (run, scenario, fmus, results, foxglove, distributed, analysis, watch):
     _commands.register(app)
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        import cosim
+
+        print(f"cosim {cosim.__version__}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _options(version: bool = typer.Option(False, "--version", "-V", is_eager=True,
+                                          callback=_print_version,
+                                          help="print the version and exit")) -> None:
+    """Co-simulation of closed-loop vehicle control (FMU plants, Python components)."""
 
 
 FOXGLOVE_PORT = 8765  # Foxglove's usual port (cosim.foxglove.live.DEFAULT_PORT; not imported: no SDK load here)

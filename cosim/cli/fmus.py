@@ -1,4 +1,9 @@
-"""`cosim build-fmus`: build the built-in plant FMUs from their C sources."""
+"""`cosim build-fmus`: build the built-in plant FMUs from their C sources.
+
+In a checkout the default output is `build/fmus/`; in an installed package it
+is the per-user cache that runs use (`cosim.fmu.cache`). No model sources at
+all (an incomplete install) is a user error: one line, exit 2.
+"""
 
 from __future__ import annotations
 
@@ -11,14 +16,21 @@ from cosim.cli.common import user_error_exit
 from cosim.errors import UserError
 
 
-def build_fmus(out: Optional[Path] = typer.Option(None, "--out", help="output folder")) -> None:
-    """Build the built-in FMUs."""
-    from cosim.fmu.build import FmuBuildError, build_all
+def build_fmus(out: Optional[Path] = typer.Option(
+        None, "--out", help="output folder (default: build/fmus in a checkout, "
+                            "else the per-user FMU cache that runs use)")) -> None:
+    """Build the built-in FMUs (every folder of fmus/ with a variables.def), FMI 2.0 and 3.0.
+
+    Example: cosim build-fmus --out /tmp/fmus
+    """
+    from cosim.fmu.build import build_all
+    from cosim.fmu.cache import build_all_cached
+    from cosim.resources import is_checkout
 
     try:
-        paths = build_all(out)
-    except (UserError, FmuBuildError) as error:
-        raise user_error_exit(UserError(str(error))) from None
+        paths = build_all(out) if out is not None or is_checkout() else build_all_cached()
+    except UserError as error:
+        raise user_error_exit(error) from None
     for path in paths:
         print(path)
 

@@ -8,7 +8,6 @@ it has (see `cosim.execution.run`).
 from __future__ import annotations
 
 import contextlib
-import json
 import sys
 import datetime
 import signal
@@ -23,6 +22,8 @@ from rich.markup import escape
 from cosim.cli import interrupts
 from cosim.cli.common import user_error_exit
 from cosim.errors import UserError
+from cosim.execution.finish import analyse_run_folder  # shared with cosim.run (the Python API)
+from cosim.scenario.shipped import resolve_scenario
 
 DEFAULT_TRANSPORT = "zenoh"  # DESIGN.md: each Python component its own OS process
 EXIT_FAILED_RUN = 1
@@ -41,7 +42,9 @@ def default_run_dir(name: str, now: datetime.datetime | None = None) -> Path:
 
 
 def run(
-    scenario: Path = typer.Argument(..., help="scenario YAML file"),
+    scenario: Optional[str] = typer.Argument(
+        None, help="scenario YAML file, or a shipped scenario's name (none: list them)",
+        show_default=False),
     out: Optional[Path] = typer.Option(None, "--out", help="run folder (default: runs/<name>-<UTC time>)"),
     transport: str = typer.Option(DEFAULT_TRANSPORT, "--transport", help="inproc | zenoh"),
     set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE (YAML value), repeatable"),
@@ -61,14 +64,24 @@ def run(
     foxglove_host: str = typer.Option("127.0.0.1", "--foxglove-host",
                                       help="loopback address of the Foxglove server"),
 ) -> None:
-    """Run a scenario and write its run folder."""
+    """Run a scenario and write its run folder.
+
+    Examples (quoted, so they paste into any shell):
+
+        cosim run lane_change --transport inproc --set 'duration=10'
+
+        cosim run scenarios/lane_change.yaml --set 'components.vehicle.fmu=Bicycle'
+    """
     from cosim.execution.run import check_run_options
     from cosim.engine.startup import StartupClock
 
     clock = StartupClock.from_process_start()  # time to tick 0 as the user sees it
     interrupts.restore()  # from here a Ctrl-C is handled below and by the run
+    if scenario is None:
+        raise _list_shipped()
     try:
         check_run_options(transport, realtime)  # option errors come before anything else
+        scenario_file = resolve_scenario(scenario)
         if mcap:
             from cosim.cli.foxglove import require_foxglove
             require_foxglove("--mcap")
@@ -79,8 +92,8 @@ def run(
         if prestart and transport == "zenoh" and not (place or listen or connect or deploy):
             from cosim.execution.prestart import prestart_components
 
-            early = prestart_components(scenario)  # their start overlaps the scenario's load
-        result = _load_and_run(scenario, set_, out, (deploy, listen, connect), clock,
+            early = prestart_components(scenario_file)  # their start overlaps the scenario's load
+        result = _load_and_run(scenario_file, set_, out, (deploy, listen, connect), clock,
                                (foxglove, foxglove_host), transport=transport, realtime=realtime,
                                place=place, deadline_s=deadline, prestart=early)
     except UserError as error:
@@ -95,6 +108,16 @@ def run(
         if early is not None:
             early.close()
     _finish_run(result, figures, mcap)
+
+
+def _list_shipped() -> typer.Exit:
+    """`cosim run` without a scenario: say how to run one and list the shipped ones (exit 0)."""
+    from cosim.scenario.shipped import listing
+
+    print("usage: cosim run SCENARIO [OPTIONS]  (a YAML file or a shipped name; "
+          "cosim run -h for the options)\nshipped scenarios:")
+    print(listing())
+    return typer.Exit(0)
 
 
 def _interrupted_exit(stop_error: str | None = None) -> typer.Exit:
@@ -199,39 +222,6 @@ def _sigterm_interrupts() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
-
-
-def analyse_run_folder(result: Any, figures: bool) -> list[str]:
-    """Merge the run metrics into metrics.json and draw the figures; notes to print.
-
-    A run folder that cannot be analysed (e.g. a scenario without a vehicle)
-    gives a note, not an error: the run itself succeeded.
-
-    Args:
-        result: a cosim.execution.run.RunResult (its metrics are refreshed from metrics.json).
-        figures: draw the PNG figures too.
-    """
-    from cosim.analysis.metrics import write_metrics
-    from cosim.analysis.rundata import load_run
-
-    try:
-        run = load_run(result.out_dir)  # signals.csv parsed once, for metrics and figures
-    except Exception as exc:  # analysis is best effort after a run
-        return [f"metrics not computed: {exc}"] + ([f"figures not drawn: {exc}"] if figures else [])
-    notes: list[str] = []
-    try:
-        write_metrics(result.out_dir, run=run)
-        result.metrics = json.loads((result.out_dir / "metrics.json").read_text())
-    except Exception as exc:
-        notes.append(f"metrics not computed: {exc}")
-    if figures:
-        try:
-            from cosim.figures.layouts import draw_figures
-
-            notes += [f"figure: {path}" for path in draw_figures(result.out_dir, run=run)]
-        except Exception as exc:
-            notes.append(f"figures not drawn: {exc}")
-    return notes
 
 
 def register(app: typer.Typer) -> None:

@@ -1,9 +1,9 @@
-"""`cosim validate` and `cosim schema`: check a scenario without running it; the JSON schema."""
+"""`cosim validate`, `cosim schema`, `cosim scenarios`: check a scenario without running it;
+the JSON schema; the shipped scenarios."""
 
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import typer
 
@@ -11,14 +11,18 @@ from cosim.cli.common import user_error_exit
 from cosim.errors import UserError
 
 
-def validate(file: Path = typer.Argument(..., help="scenario YAML file"),
+def validate(file: str = typer.Argument(..., help="scenario YAML file, or a shipped scenario's name"),
              set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE")) -> None:
-    """Check a scenario (schema, FMUs, parameters, wiring) without running it."""
+    """Check a scenario (schema, FMUs, parameters, wiring) without running it.
+
+    Example: cosim validate lane_change --set 'duration=10'
+    """
     from cosim.execution.validate import validate_scenario
     from cosim.scenario.loader import load_scenario
+    from cosim.scenario.shipped import resolve_scenario
 
     try:
-        checked = validate_scenario(load_scenario(file, overrides=set_))
+        checked = validate_scenario(load_scenario(resolve_scenario(file), overrides=set_))
     except UserError as error:
         raise user_error_exit(error) from None
     print(f"{file}: ok ({len(checked['components'])} components, {len(checked['edges'])} "
@@ -32,7 +36,18 @@ def schema() -> None:
     print(json.dumps(json_schema(), indent=2))
 
 
+def scenarios() -> None:
+    """List the shipped scenarios, one line each (name, duration, what it shows).
+
+    Run one by name from any folder: cosim run lane_change
+    """
+    from cosim.scenario.shipped import listing
+
+    print(listing())
+
+
 def register(app: typer.Typer) -> None:
-    """Add `validate` and `schema` to the main typer app."""
+    """Add `validate`, `schema` and `scenarios` to the main typer app."""
     app.command()(validate)
     app.command()(schema)
+    app.command()(scenarios)

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.errors import UserError
+from cosim.scenario.imports import add_import_roots, import_roots
 from cosim.transport.launch import PythonComponentLaunch
 
 
@@ -71,7 +72,12 @@ def plan_launches(scenario: Any, import_classes: bool = True) -> list[PythonComp
             missing or bad class in its handshake, with the same message.
     Raises:
         UserError naming the component (class, period).
+
+    The scenario's folder and the working directory go in front of the import
+    path here, and into each launch for the processes (`cosim.scenario.imports`).
     """
+    roots = import_roots(scenario.source_file)
+    add_import_roots(roots)  # for the classes imported here and by the in-process host
     launches = []
     for name, spec in scenario.python_components().items():
         default = None
@@ -83,7 +89,7 @@ def plan_launches(scenario: Any, import_classes: bool = True) -> list[PythonComp
             default = getattr(cls, "default_period", None)
         period = scenario.period_ticks(name, default)
         parameters = with_data_files(dict(spec.parameters), scenario.base_dir)
-        launches.append(PythonComponentLaunch(name, spec.python, parameters, period))
+        launches.append(PythonComponentLaunch(name, spec.python, parameters, period, roots))
     return launches
 
 
@@ -125,10 +131,11 @@ def plan_fmu(scenario: Any, name: str, spec: Any) -> FmuPlan:
 
     where = scenario.resolve_fmu_path(spec)
     if isinstance(where, str):
-        from cosim.fmu.build import FmuBuildError, ensure_fmu
+        from cosim.fmu.build import FmuBuildError
+        from cosim.fmu.cache import builtin_fmu
 
         try:
-            path = Path(ensure_fmu(where))
+            path = Path(builtin_fmu(where))
         except FmuBuildError as exc:
             raise UserError(f"{scenario.where(('components', name, 'fmu'))}: cannot build "
                             f"the built-in FMU {where!r}: {exc}") from exc

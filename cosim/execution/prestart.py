@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cosim.scenario.imports import import_roots
 from cosim.transport.zenoh.processes import ChildProcess, reap
 
 GRACE_S = 2.0
@@ -103,10 +104,11 @@ def prestart_components(scenario_file: str | Path) -> Prestart | None:
     if not names or len(set(names)) != len(names):
         return None
     prestart = Prestart(uuid.uuid4().hex[:12], free_tcp_endpoint())
+    roots = import_roots(scenario_file)
     try:
         for name in names:
             prestart.children[name] = ChildProcess.prestart(name, prestart.run_id,
-                                                            prestart.endpoint, found[name])
+                                                            prestart.endpoint, found[name], roots)
     except BaseException:
         prestart.close()
         raise

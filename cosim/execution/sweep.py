@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from cosim.analysis.rundata import AnalysisError
+from cosim.scenario.imports import import_roots
 
 STATS = ("n", "mean", "std", "min", "p5", "p50", "p95", "max")
 METHODS = ("lhs", "uniform")
@@ -177,9 +178,16 @@ def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: 
     return run_metrics(load_run(run_dir))
 
 
-def _run_task(run_fn: RunFunction, scenario_path: Path, transport: str, index: int,
-              overrides: list[str], run_dir: Path) -> tuple[str, dict[str, float], str]:
-    """One Dask task: run a sample, turn any failure into a "failed" status and message."""
+def _run_task(run_fn: RunFunction, scenario_path: Path, transport: str, roots: tuple[str, ...],
+              index: int, overrides: list[str], run_dir: Path) -> tuple[str, dict[str, float], str]:
+    """One Dask task: run a sample, turn any failure into a "failed" status and message.
+
+    `roots` (the scenario's folder and the master's cwd) go in front of the worker's
+    import path, so a sample imports the scenario's modules as `cosim run` does.
+    """
+    from cosim.scenario.imports import add_import_roots
+
+    add_import_roots(roots)
     try:
         return "ok", dict(run_fn(scenario_path, overrides, run_dir, transport)), ""
     except Exception as exc:  # noqa: BLE001 - one bad sample must not end the sweep
@@ -316,7 +324,8 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
     (out / "samples").mkdir(parents=True, exist_ok=True)
     jobs = [(i, list(sets) + [format_override(v.path, x) for v, x in zip(parsed, row)],
              (out / "samples" / f"sample_{i:04d}").resolve()) for i, row in enumerate(points)]
-    task = partial(_run_task, run_fn or run_scenario_sample, scenario_path, transport)
+    task = partial(_run_task, run_fn or run_scenario_sample, scenario_path, transport,
+                   import_roots(scenario_path))
     outcomes = execute_samples(task, jobs, scheduler, cluster_options)
     results = [SampleResult(i, [float(x) for x in row], status, metrics, error)
                for (i, row), (status, metrics, error) in zip(enumerate(points), outcomes)]

@@ -9,7 +9,8 @@ only. Each FMU carries its C sources (FMI2 ``<SourceFiles>``, FMI3
 
 Public API: ``MODELS``, ``FmuBuildError``, ``build_fmu``, ``build_all``,
 ``ensure_fmu``, ``fmu_file_name``, ``build_fmu_from`` (a model folder outside
-fmus/, for tests and benchmarks).
+fmus/, for tests and benchmarks). Runs take the built-in FMUs from the per-user
+cache of `cosim.fmu.cache` instead (keyed by source hash and compiler).
 """
 from __future__ import annotations
 
@@ -24,10 +25,11 @@ from pathlib import Path
 
 from cosim.errors import UserError
 
-REPO_DIR = Path(__file__).resolve().parents[2]
-FMUS_DIR = REPO_DIR / "fmus"
+from cosim.resources import CHECKOUT_DIR, builtin_models, fmus_dir
+
+FMUS_DIR = fmus_dir()  # the checkout's fmus/, or the copy an installed wheel carries
 FRAMEWORK_DIR = FMUS_DIR / "framework"
-DEFAULT_OUT_DIR = REPO_DIR / "build" / "fmus"
+CHECKOUT_OUT_DIR = CHECKOUT_DIR / "build" / "fmus"  # `cosim build-fmus` in a checkout
 
 CFLAGS = ["-std=c99", "-O2", "-fPIC", "-fvisibility=hidden",
           "-Wall", "-Wextra", "-Wpedantic", "-Werror"]
@@ -43,14 +45,12 @@ class FmuBuildError(UserError):
     """
 
 
-def _find_models() -> list[str]:
-    if not FMUS_DIR.is_dir():
-        return []
-    return sorted(p.name for p in FMUS_DIR.iterdir()
-                  if p.is_dir() and (p / "variables.def").is_file())
+def find_models() -> list[str]:
+    """The built-in models: the folders of fmus/ holding a variables.def."""
+    return builtin_models()
 
 
-MODELS: list[str] = _find_models()
+MODELS: list[str] = find_models()
 
 
 def fmi_include_dir() -> Path:
@@ -194,9 +194,9 @@ def build_fmu(model: str, fmi_version: int, out_dir: Path) -> Path:
         FmuBuildError: unknown model/version, compiler error (with gcc's
             message) or a variable table the generator rejects.
     """
-    if model not in _find_models():
+    if model not in find_models():
         raise FmuBuildError(f"unknown model {model!r}: no {FMUS_DIR / model / 'variables.def'}"
-                            f" (models: {', '.join(_find_models()) or 'none'})")
+                            f" (models: {', '.join(find_models()) or 'none'})")
     return build_fmu_from(FMUS_DIR / model, fmi_version, out_dir)
 
 
@@ -243,15 +243,22 @@ def build_all(out_dir: Path | None = None) -> list[Path]:
     """Build every model of MODELS as FMI 2.0 and FMI 3.0 FMUs.
 
     Args:
-        out_dir: output folder; default <repo>/build/fmus.
+        out_dir: output folder; default <checkout>/build/fmus (`cosim.fmu.cache` for runs).
     Returns:
         the .fmu paths, per model the FMI 2.0 one then the FMI 3.0 one.
+    Raises:
+        FmuBuildError: no model sources found (no fmus/ folder with a variables.def).
     """
-    out = Path(out_dir) if out_dir is not None else DEFAULT_OUT_DIR
-    return [build_fmu(m, v, out) for m in _find_models() for v in (2, 3)]
+    models = find_models()
+    if not models:
+        raise FmuBuildError(f"no built-in model sources found in {FMUS_DIR} (a model is a "
+                            "folder there holding a variables.def; is the package complete?)")
+    out = Path(out_dir) if out_dir is not None else CHECKOUT_OUT_DIR
+    return [build_fmu(m, v, out) for m in models for v in (2, 3)]
 
 
-def _parse_fmu_name(name: str) -> tuple[str, int]:
+def parse_fmu_name(name: str) -> tuple[str, int]:
+    """(model, FMI version) of a built-in FMU name: "Bicycle-fmi3.fmu" -> ("Bicycle", 3)."""
     stem = name[:-4] if name.endswith(".fmu") else name
     if stem.endswith("-fmi3"):
         return stem[:-5], 3
@@ -263,15 +270,15 @@ def ensure_fmu(name: str, out_dir: Path | None = None) -> Path:
 
     Args:
         name: "Bicycle", "Bicycle-fmi3" (with or without ".fmu"), etc.
-        out_dir: output folder; default <repo>/build/fmus.
+        out_dir: output folder; default <checkout>/build/fmus (`cosim.fmu.cache` for runs).
     Raises:
         FmuBuildError: unknown name or a failed build.
     """
-    model, version = _parse_fmu_name(name)
-    if model not in _find_models():
+    model, version = parse_fmu_name(name)
+    if model not in find_models():
         raise FmuBuildError(f"{name!r} is not a built-in FMU (built-in models: "
-                            f"{', '.join(_find_models()) or 'none'}; FMI 3.0 ones end in -fmi3)")
-    out = Path(out_dir) if out_dir is not None else DEFAULT_OUT_DIR
+                            f"{', '.join(find_models()) or 'none'}; FMI 3.0 ones end in -fmi3)")
+    out = Path(out_dir) if out_dir is not None else CHECKOUT_OUT_DIR
     path = out / fmu_file_name(model, version)
     inputs = [*model_sources(FMUS_DIR / model), FMUS_DIR / model / "README.md",
               FRAMEWORK_DIR / GENERATOR_SOURCE, Path(__file__)]

@@ -1,7 +1,8 @@
 """The run folder's manifest.json: what ran, where, with what, and how it went.
 
 Written once before tick 0 (status "running") and rewritten at the end (status
-"ok" or "failed" with the error), so even a killed run leaves a manifest.
+"ok" or "failed" with the error), so even a killed run leaves a manifest. Its
+"signals" entry gives each output's unit and description (`signal_info`).
 """
 
 from __future__ import annotations
@@ -85,7 +86,25 @@ def base_manifest(scenario: Any, prepared: Any, hosted: dict[str, Any], transpor
         "python": sys.version.split()[0],
         "platform": platform.platform(),
         "packages": dict(package_versions()),
+        "signals": signal_info(hosted),
     }
+
+
+def signal_info(hosted: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """"component.signal" -> {"unit", "description", "size"} of every output port.
+
+    The recorded columns (signals.csv, arrays/) are a subset: `record:` may leave some out.
+
+    Args:
+        hosted: name -> HostedComponent (its `outputs` are `cosim.component.Port`s).
+    """
+    info: dict[str, dict[str, Any]] = {}
+    for name, component in hosted.items():
+        for port in getattr(component, "outputs", ()) or ():
+            info[f"{name}.{port.name}"] = {"unit": str(getattr(port, "unit", "") or ""),
+                                          "description": str(getattr(port, "description", "")),
+                                          "size": int(getattr(port, "size", 1))}
+    return info
 
 
 def _fmu_entry(plan: Any) -> dict[str, Any]:

@@ -18,8 +18,10 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-#: Built-in plant FMUs, built by the platform on demand.
-BUILTIN_FMUS: tuple[str, ...] = ("Bicycle", "Vehicle8DOF", "Bicycle-fmi3", "Vehicle8DOF-fmi3")
+from cosim.resources import builtin_fmu_names
+
+#: Built-in plant FMUs, built by the platform on demand: discovered from the folders of fmus/.
+BUILTIN_FMUS: tuple[str, ...] = builtin_fmu_names()
 
 IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 

@@ -38,6 +38,7 @@ Example:
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -58,7 +59,7 @@ __all__ = [
     "BUILTIN_FMUS", "IDENTIFIER", "ComponentSpec", "Connection", "ConstantSource", "FmuSpec",
     "GustSource", "PythonSpec", "RampSource", "RecordSpec", "SOURCE_CLASSES", "Scenario",
     "SourceSpec", "StepSource", "TableSource", "Uncertainty", "apply_overrides",
-    "json_schema", "load_scenario", "whole_ticks",
+    "json_schema", "load_scenario", "scenario_from_dict", "whole_ticks",
 ]
 
 
@@ -94,7 +95,29 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
     return _validate(data, file, lines, problems)
 
 
-def _validate(data: dict, file: Path, lines: LineMap, problems: list[Problem]) -> Scenario:
+def scenario_from_dict(document: dict, overrides: Sequence[str] = ()) -> Scenario:
+    """Validate a scenario given as a mapping (as its YAML would load), overrides applied.
+
+    The checks and messages are those of `load_scenario`, without line numbers;
+    relative paths resolve against the working directory. The mapping is not modified.
+
+    Args:
+        document: the scenario fields (name, duration, tick, components, ...).
+        overrides: "dotted.path=value" strings, as for `load_scenario`.
+    Raises:
+        ScenarioError: listing every problem found (file shown as "<scenario>").
+    """
+    data = copy.deepcopy(document)
+    lines = LineMap()
+    problems = apply_overrides(data, overrides, lines)
+    if not isinstance(data, dict):
+        raise ScenarioError(None, [Problem("", None, "a scenario must be a mapping of fields "
+                                                     "(name, duration, tick, components, ...)")])
+    return _validate(data, None, lines, problems)
+
+
+def _validate(data: dict, file: Path | None, lines: LineMap,
+              problems: list[Problem]) -> Scenario:
     """Validate a document, gathering schema and cross-field problems in one error."""
     scenario: Scenario | None = None
     try:
@@ -102,7 +125,7 @@ def _validate(data: dict, file: Path, lines: LineMap, problems: list[Problem]) -
     except ValidationError as exc:
         problems += [_problem_of(err, lines) for err in exc.errors()]
     seen = {p.path for p in problems}
-    for loc, message in semantic_problems(data, file.parent):
+    for loc, message in semantic_problems(data, file.parent if file is not None else Path.cwd()):
         problem = _located(loc, message, lines)
         if problem.path not in seen:
             problems.append(problem)

@@ -21,9 +21,12 @@ class PythonComponentLaunch:
         class_path: "package.module:ClassName" of a `cosim.component.Component`.
         parameters: keyword arguments for the class constructor.
         period_ticks: master ticks between two steps (>= 1).
+        import_path: folders in front of the import path of the process that hosts it
+            (`cosim.scenario.imports.import_roots`); () means the working directory.
     """
 
     name: str
     class_path: str
     parameters: Mapping[str, Any] = field(default_factory=dict)
     period_ticks: int = 1
+    import_path: tuple[str, ...] = ()

@@ -107,7 +107,9 @@ def test_plan_launches_imports_a_class_only_when_its_period_is_needed(tmp_path):
     text = text.replace("{k: 3.0}", "{k: 3.0}\n    period: 0.02")
     scenario = load_scenario(_scenario(tmp_path, text))
     launches = plan_launches(scenario, import_classes=False)
-    assert launches[0] == PythonComponentLaunch("gain", "no_such_module_here:Gain", {"k": 3.0}, 2)
+    roots = (str(tmp_path), os.getcwd())  # the scenario's folder, then the cwd
+    assert launches[0] == PythonComponentLaunch("gain", "no_such_module_here:Gain", {"k": 3.0}, 2,
+                                                roots)
     assert [l.name for l in launches] == ["gain", "ramp"] and launches[1].period_ticks == 1
 
 

@@ -270,7 +270,7 @@ def test_run_command_analysis_parses_signals_once_with_the_same_outputs(tmp_path
     from types import SimpleNamespace
 
     from cosim.analysis import rundata as metrics_rundata
-    from cosim.cli.run import analyse_run_folder
+    from cosim.execution.finish import analyse_run_folder
     from cosim.analysis.metrics import write_metrics
 
     separate = lane_change_run(tmp_path / "separate" / "run")  # same name: same legend

@@ -23,6 +23,7 @@ from typing import Any
 
 import cosim
 from cosim.errors import UserError
+from cosim.scenario.imports import pythonpath
 from cosim.transport.launch import PythonComponentLaunch
 
 TAIL_CHARS = 800
@@ -39,8 +40,9 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"{type(value).__name__} is not JSON-serializable")
 
 
-def _child_env() -> dict[str, str]:
-    """Environment letting the child import cosim and modules next to the master's cwd.
+def _child_env(import_path: Sequence[str] = ()) -> dict[str, str]:
+    """Environment letting the child import cosim and the scenario's modules: `import_path`
+    (the scenario's folder and the cwd, `cosim.scenario.imports`), else the cwd.
 
     OpenBLAS gets one thread unless the user says otherwise: a component works
     on small vectors, and numpy's import then starts no thread pool (about a
@@ -48,10 +50,8 @@ def _child_env() -> dict[str, str]:
     """
     env = dict(os.environ)
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
-    roots = [os.getcwd(), str(Path(cosim.__file__).resolve().parent.parent)]
-    if env.get("PYTHONPATH"):
-        roots.append(env["PYTHONPATH"])
-    env["PYTHONPATH"] = os.pathsep.join(roots)
+    roots = [*(import_path or [os.getcwd()]), str(Path(cosim.__file__).resolve().parent.parent)]
+    env["PYTHONPATH"] = pythonpath(roots, env.get("PYTHONPATH"))
     return env
 
 
@@ -84,11 +84,11 @@ class ChildProcess:
         argv = [*_runner_argv(spec.name, run_id, endpoint), "--class", spec.class_path,
                 "--params", _params_json(spec), "--period-ticks", str(int(spec.period_ticks)),
                 *extra_args]
-        self._start(spec.name, argv, subprocess.DEVNULL)
+        self._start(spec.name, argv, subprocess.DEVNULL, spec.import_path)
 
     @classmethod
     def prestart(cls, name: str, run_id: str, endpoint: str,
-                 preload: str | None = None) -> "ChildProcess":
+                 preload: str | None = None, import_path: Sequence[str] = ()) -> "ChildProcess":
         """Start the process of component `name` before its class, parameters and
         period are known: it loads its modules (numpy, zenoh, `preload`), then
         waits for `send_spec` on its stdin (and exits quietly if stdin closes first).
@@ -98,11 +98,12 @@ class ChildProcess:
             run_id: the run's id.
             endpoint: the master's listen endpoint the child will connect to.
             preload: a module the component's class probably lives in, or None.
+            import_path: folders in front of its import path (the scenario's, the cwd).
         """
         child = cls.__new__(cls)
         extra = ["--preload", preload] if preload else []
         child._start(name, [*_runner_argv(name, run_id, endpoint), "--spec-stdin", *extra],
-                     subprocess.PIPE)
+                     subprocess.PIPE, import_path)
         return child
 
     def send_spec(self, spec: PythonComponentLaunch) -> None:
@@ -127,10 +128,11 @@ class ChildProcess:
         except (OSError, ValueError):
             pass  # the process died (or was reaped): the handshake reports how
 
-    def _start(self, name: str, argv: list[str], stdin: int) -> None:
+    def _start(self, name: str, argv: list[str], stdin: int,
+               import_path: Sequence[str] = ()) -> None:
         self.name = name
         self._log = tempfile.TemporaryFile(prefix=f"cosim-{name}-")
-        self.popen = subprocess.Popen(argv, env=_child_env(), stdin=stdin,
+        self.popen = subprocess.Popen(argv, env=_child_env(import_path), stdin=stdin,
                                       stdout=self._log, stderr=subprocess.STDOUT)
         self.pid = self.popen.pid
 

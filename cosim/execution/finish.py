@@ -1,0 +1,46 @@
+"""After a run: its metrics and figures, computed one way for `cosim run` and `cosim.run`.
+
+`analyse_run_folder` parses the run folder once, merges the platform's metrics
+(`cosim.analysis.metrics`) into metrics.json beside what the components
+reported, refreshes the RunResult's metrics from that file, and draws the
+figures. Analysis is best effort after a run that itself succeeded: what
+cannot be computed becomes a note, not an error.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+
+def analyse_run_folder(result: Any, figures: bool) -> list[str]:
+    """Merge the run metrics into metrics.json and draw the figures; notes to print.
+
+    A run folder that cannot be analysed (e.g. a scenario without a vehicle)
+    gives a note, not an error: the run itself succeeded.
+
+    Args:
+        result: a cosim.execution.run.RunResult (its metrics are refreshed from metrics.json).
+        figures: draw the PNG figures too.
+    """
+    from cosim.analysis.metrics import write_metrics
+    from cosim.analysis.rundata import load_run
+
+    try:
+        run = load_run(result.out_dir)  # signals.csv parsed once, for metrics and figures
+    except Exception as exc:  # analysis is best effort after a run
+        return [f"metrics not computed: {exc}"] + ([f"figures not drawn: {exc}"] if figures else [])
+    notes: list[str] = []
+    try:
+        write_metrics(result.out_dir, run=run)
+        result.metrics = json.loads((result.out_dir / "metrics.json").read_text())
+    except Exception as exc:
+        notes.append(f"metrics not computed: {exc}")
+    if figures:
+        try:
+            from cosim.figures.layouts import draw_figures
+
+            notes += [f"figure: {path}" for path in draw_figures(result.out_dir, run=run)]
+        except Exception as exc:
+            notes.append(f"figures not drawn: {exc}")
+    return notes
