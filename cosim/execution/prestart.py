@@ -92,15 +92,16 @@ def prestart_components(scenario_file: str | Path) -> Prestart | None:
     """
     import yaml
 
+    from cosim.scenario.yaml_lines import read_yaml_file
     from cosim.transport.zenoh.config import check_key_chunk, free_tcp_endpoint
 
     try:
-        text = Path(scenario_file).read_text()
+        text = read_yaml_file(scenario_file)  # bounded: /dev/zero or a huge file is refused
         document = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
         found = local_python_components(document)
         names = [check_key_chunk(n, "component name") for n in found]
-    except (OSError, ValueError, yaml.YAMLError):
-        return None  # loading the scenario reports it properly
+    except (OSError, ValueError, yaml.YAMLError, RecursionError):
+        return None  # loading the scenario reports it properly (deep nesting included)
     if not names or len(set(names)) != len(names):
         return None
     prestart = Prestart(uuid.uuid4().hex[:12], free_tcp_endpoint())

@@ -53,7 +53,8 @@ from cosim.scenario.models import (ComponentSpec, Connection, FmuSpec, PythonSpe
 from cosim.scenario.sources import (SOURCE_CLASSES, SOURCE_KIND_ERROR, SOURCE_MODELS,
                                     ConstantSource, GustSource, RampSource, SourceSpec,
                                     StepSource, TableSource)
-from cosim.scenario.yaml_lines import LineMap, format_path, load_yaml, parse_scalar
+from cosim.scenario.yaml_lines import (LineMap, YamlLimitError, format_path, load_yaml,
+                                       parse_scalar, read_yaml_file)
 
 __all__ = [
     "BUILTIN_FMUS", "IDENTIFIER", "ComponentSpec", "Connection", "ConstantSource", "FmuSpec",
@@ -77,11 +78,11 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
     """
     file = Path(path)
     try:
-        text = file.read_text(encoding="utf-8")
+        text = read_yaml_file(file)
     except FileNotFoundError:
         raise ScenarioError(file, [Problem("", None, "scenario file not found")]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(file, [Problem("", None, f"cannot read the file: {exc}")]) from None
+    except YamlLimitError as exc:
+        raise ScenarioError(file, [Problem("", exc.line, exc.problem)]) from None
     data, lines, problems = load_yaml(text)
     if problems and data is None:
         raise ScenarioError(file, problems)

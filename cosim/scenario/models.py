@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import fnmatch
 import math
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field,
+from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field,
                       FiniteFloat, NonNegativeFloat, PositiveFloat, PrivateAttr, Tag,
                       ValidationInfo,
                       model_validator)
@@ -23,9 +24,24 @@ from cosim.scenario.checks import BUILTIN_FMUS, semantic_problems, whole_ticks
 from cosim.scenario.sources import SOURCE_CLASSES, SourceSpec
 from cosim.scenario.yaml_lines import LineMap, format_path
 
-STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
+# strict: a bool or a string is never read as a number ("duration: true" is an error)
+STRICT = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
+RUN_NAME = re.compile(r"^[A-Za-z0-9._-]{1,100}$")
 PYTHON_CLASS = r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*$"
 ENDPOINT = r"^[A-Za-z_][A-Za-z0-9_]*(\.\S.*)?$"
+
+
+#: an [x, y] pair: YAML gives a list, which strict mode would refuse as a tuple
+XYPair = Annotated[tuple[FiniteFloat, FiniteFloat], Field(strict=False)]
+
+
+def _run_name(value: Any) -> Any:
+    """A run name becomes a folder name: letters, digits, '-', '_', '.', at most 100."""
+    if isinstance(value, str) and (not RUN_NAME.match(value) or value in (".", "..")):
+        raise ValueError("must be a safe file name: letters, digits, '-', '_', '.' "
+                         f"(at most 100 characters, not . or ..), got {value[:120]!r}"
+                         + (f" ({len(value)} characters)" if len(value) > 100 else ""))
+    return value
 
 
 class Uncertainty(BaseModel):
@@ -119,7 +135,7 @@ class Connection(BaseModel):
     """
 
     model_config = ConfigDict(extra="forbid", validate_by_name=True, validate_by_alias=True,
-                              serialize_by_alias=True)
+                              serialize_by_alias=True, strict=True)
     src: str = Field(alias="from", pattern=ENDPOINT)
     dst: str = Field(alias="to", pattern=ENDPOINT)
     delay: int = Field(0, ge=0)
@@ -188,7 +204,7 @@ class MetricsSpec(BaseModel):
 
     model_config = STRICT
     skip_s: NonNegativeFloat = 0.0
-    cones: list[tuple[FiniteFloat, FiniteFloat]] = []
+    cones: list[XYPair] = []
     vehicle_length: PositiveFloat = 4.5
     vehicle_width: PositiveFloat = 1.8
     vehicle_front: PositiveFloat | None = None   # CG to front bumper, m; None: half the length
@@ -199,7 +215,7 @@ class Scenario(BaseModel):
     """A validated scenario; see the module docstring and cosim.scenario.loader for the format."""
 
     model_config = STRICT
-    name: str = Field(min_length=1)
+    name: Annotated[str, Field(min_length=1), AfterValidator(_run_name)]
     description: str = ""
     duration: PositiveFloat
     tick: PositiveFloat

@@ -13,7 +13,9 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import (BaseModel, ConfigDict, Discriminator, Field, PositiveFloat, Tag,
                       model_validator)
 
-STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
+STRICT = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)  # no bool or str as numbers
+#: a [abscissa, value] pair: YAML gives a list, which strict mode would refuse as a tuple
+Point = Annotated[tuple[float, float], Field(strict=False)]
 
 
 class SourceBase(BaseModel):
@@ -87,7 +89,7 @@ class TableSource(SourceBase):
 
     kind: Literal["table"]
     over: Literal["time", "distance"] = "time"
-    points: list[tuple[float, float]] = Field(min_length=1)
+    points: list[Point] = Field(min_length=1)
     interpolation: Literal["linear", "previous"] = "linear"
 
     @model_validator(mode="after")

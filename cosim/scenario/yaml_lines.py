@@ -8,6 +8,12 @@ overwrites, are reported as problems.
 
 Scalars follow YAML 1.1 as PyYAML's safe loader reads them, plus exponent
 floats without a dot ("1e-3"), which PyYAML would otherwise read as strings.
+
+Hostile or broken documents get one located problem, never a crash: nesting
+deeper than `MAX_DEPTH`, aliases that expand to more than `MAX_ALIAS_VALUES`
+values (an "alias bomb"), an anchor used inside its own value, characters YAML
+does not allow (NUL, other control characters) and scalars Python cannot
+construct (an out-of-range date, an integer of thousands of digits).
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import yaml
@@ -23,9 +30,53 @@ from cosim.errors import Problem
 
 PathKey = tuple[str | int, ...]
 
+MAX_FILE_BYTES = 10 * 1024 * 1024  # a scenario file is a few kB; tables stay far below this
+MAX_DEPTH = 64  # nested mappings and lists; a scenario needs about 6
+MAX_ALIAS_VALUES = 100_000  # values built again through aliases, over the whole document
+
+
+class YamlLimitError(yaml.YAMLError):
+    """A document that breaks a limit of the loader, or that Python cannot construct.
+
+    Attributes:
+        problem: what is wrong (as for PyYAML's marked errors).
+        line: 1-based line where it is, or None.
+    """
+
+    def __init__(self, problem: str, line: int | None) -> None:
+        super().__init__(problem)
+        self.problem, self.line = problem, line
+        self.problem_mark = None
+
 
 class _Loader(yaml.SafeLoader):
-    """Safe loader that also reads "1e-3" and "2E+5" as floats."""
+    """Safe loader that also reads "1e-3" and "2E+5" as floats, and bounds
+    nesting and merge-key cycles (PyYAML itself recurses without a limit)."""
+
+    def __init__(self, stream: str) -> None:
+        super().__init__(stream)
+        self._depth = 0
+        self._merging: set[int] = set()
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        self._depth += 1
+        try:
+            if self._depth > MAX_DEPTH:
+                raise YamlLimitError(f"nesting deeper than {MAX_DEPTH} levels",
+                                     self.peek_event().start_mark.line + 1)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def flatten_mapping(self, node: Any) -> None:
+        if id(node) in self._merging:
+            raise YamlLimitError("a merge key (<<) refers to the mapping it is in",
+                                 node.start_mark.line + 1)
+        self._merging.add(id(node))
+        try:
+            super().flatten_mapping(node)  # calls this method again for merged mappings
+        finally:
+            self._merging.discard(id(node))
 
 
 _Loader.add_implicit_resolver(
@@ -79,15 +130,60 @@ class LineMap:
         return None
 
 
+def read_yaml_file(path: str | Path) -> str:
+    """The text of a YAML file, refusing what cannot be a scenario.
+
+    At most MAX_FILE_BYTES + 1 bytes are read, so a device (/dev/zero) or a huge
+    file costs nothing; the text must be UTF-8 without NUL bytes.
+
+    Args:
+        path: the file.
+    Raises:
+        FileNotFoundError: when there is no such file.
+        YamlLimitError: a folder, an unreadable, oversized, binary or non-UTF-8 file
+            (with the line of the first bad byte).
+    """
+    try:
+        with open(path, "rb") as handle:
+            raw = handle.read(MAX_FILE_BYTES + 1)
+    except FileNotFoundError:
+        raise
+    except IsADirectoryError:
+        raise YamlLimitError("this is a folder, not a file", None) from None
+    except OSError as exc:
+        raise YamlLimitError(f"cannot read the file: {exc.strerror or exc}", None) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise YamlLimitError(f"the file is larger than {MAX_FILE_BYTES // 2**20} MB, "
+                             "the limit of a scenario file", None)
+    if b"\0" in raw:
+        line = raw.count(b"\n", 0, raw.index(b"\0")) + 1
+        raise YamlLimitError("the file holds a NUL byte (not a text file?)", line)
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise YamlLimitError(f"the file is not UTF-8 text (byte 0x{raw[exc.start]:02x} at "
+                             f"line {line}, column {column})", line) from None
+
+
 def parse_scalar(text: str) -> Any:
     """Parse a command-line value as YAML ("2.0" -> 2.0, "[1, 2]" -> [1, 2], "abc" -> "abc").
 
     Args:
         text: the value text; an empty string gives None.
     Raises:
-        yaml.YAMLError: when the text is not valid YAML.
+        yaml.YAMLError: when the text is not valid YAML or breaks a limit of the
+            loader (YamlLimitError).
     """
-    return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
+    node = _compose(text)
+    if node is None:
+        return None
+    problems: list[Problem] = []
+    value = _Builder().build(node, (), LineMap(), problems)
+    if problems:
+        raise YamlLimitError(problems[0].message, problems[0].line)
+    return value
 
 
 def load_yaml(text: str) -> tuple[Any, LineMap, list[Problem]]:
@@ -96,70 +192,121 @@ def load_yaml(text: str) -> tuple[Any, LineMap, list[Problem]]:
     Args:
         text: the YAML document.
     Returns:
-        (data, line map, problems); problems holds syntax errors (then data is
-        None) and duplicate keys (the later value wins, as in plain YAML).
+        (data, line map, problems); problems holds syntax errors and broken
+        limits (then data is None) and duplicate keys (the later value wins,
+        as in plain YAML).
     """
     lines = LineMap()
     problems: list[Problem] = []
-    loader = _Loader(text)
     try:
-        node = loader.get_single_node()
+        node = _compose(text)
+        if node is None:
+            return None, lines, problems
+        data = _Builder().build(node, (), lines, problems)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else None
         message = str(exc.problem or exc.context or "invalid YAML")
-        return None, lines, [Problem("", line, f"YAML syntax error: {message}")]
+        return None, LineMap(), [Problem("", line, f"YAML syntax error: {message}")]
+    except YamlLimitError as exc:
+        return None, LineMap(), [Problem("", exc.line, f"YAML refused: {exc.problem}")]
     except yaml.YAMLError as exc:
-        return None, lines, [Problem("", None, f"YAML error: {exc}")]
-    finally:
-        loader.dispose()
-    if node is None:
-        return None, lines, problems
-    data = _build(node, (), lines, problems, _Loader(""))
+        return None, LineMap(), [Problem("", None, f"YAML error: {exc}")]
     return data, lines, problems
 
 
-def _build(node: yaml.Node, path: PathKey, lines: LineMap,
-           problems: list[Problem], loader: _Loader) -> Any:
-    """Construct plain data from a composed node, recording lines by path."""
-    lines.lines.setdefault(path, node.start_mark.line + 1)
-    if isinstance(node, yaml.MappingNode):
-        return _build_mapping(node, path, lines, problems, loader)
-    if isinstance(node, yaml.SequenceNode):
-        return [_build(item, path + (i,), lines, problems, loader)
-                for i, item in enumerate(node.value)]
+def _compose(text: str) -> yaml.Node | None:
+    """The document's node graph (aliases are shared nodes, not yet expanded)."""
     try:
-        return loader.construct_object(node, deep=True)
-    except yaml.YAMLError as exc:
-        problems.append(Problem(format_path(path), node.start_mark.line + 1,
-                                f"cannot read value: {exc}"))
-        return None
+        loader = _Loader(text)
+    except yaml.reader.ReaderError as exc:  # the reader checks every character up front
+        raise _reader_problem(text, exc) from None
+    try:
+        return loader.get_single_node()
+    except yaml.reader.ReaderError as exc:
+        raise _reader_problem(text, exc) from None
+    finally:
+        loader.dispose()
 
 
-def _build_mapping(node: yaml.MappingNode, path: PathKey, lines: LineMap,
-                   problems: list[Problem], loader: _Loader) -> dict[str, Any]:
-    """Construct a dict from a mapping node; report duplicate and non-scalar keys.
+def _reader_problem(text: str, exc: yaml.reader.ReaderError) -> YamlLimitError:
+    """A character YAML refuses (NUL, a control character) as a located problem."""
+    char = exc.character  # a code point (int), or a byte for bytes input
+    code = ord(char) if isinstance(char, str) else int(char)
+    name = "a NUL byte" if code == 0 else f"the control character U+{code:04X}"
+    return YamlLimitError(f"the file holds {name}, which YAML does not allow (not a text file?)",
+                          text.count("\n", 0, exc.position) + 1)
 
-    Keys are always strings: a key YAML reads as another type keeps its text.
+
+class _Builder:
+    """Plain data from a composed node graph, with lines by path.
+
+    Each alias is built again where it is used (as PyYAML does), so the number
+    of values built through aliases is counted and bounded; an alias used
+    inside the value of its own anchor is refused instead of recursing.
     """
-    explicit = {id(k) for k, _ in node.value if k.tag != "tag:yaml.org,2002:merge"}
-    loader.flatten_mapping(node)  # resolves "<<" merge keys: merged entries come first
-    result: dict[str, Any] = {}
-    first_line: dict[str, int] = {}
-    for key_node, value_node in node.value:
-        line = key_node.start_mark.line + 1
-        if not isinstance(key_node, yaml.ScalarNode):
-            problems.append(Problem(format_path(path), line, "a key must be a plain value"))
-            continue
-        key = loader.construct_object(key_node)
-        if not isinstance(key, str):
+
+    def __init__(self) -> None:
+        self.constructor = _Loader("")
+        self.seen: set[int] = set()      # nodes built at least once
+        self.open: set[int] = set()      # nodes being built (the current path)
+        self.repeats = 0                 # values built again through an alias
+
+    def build(self, node: yaml.Node, path: PathKey, lines: LineMap,
+              problems: list[Problem]) -> Any:
+        """Construct plain data from `node` at document path `path`."""
+        key = id(node)
+        line = node.start_mark.line + 1
+        if key in self.open:
+            raise YamlLimitError("an alias is used inside the value of its own anchor", line)
+        if key in self.seen:
+            self.repeats += 1
+            if self.repeats > MAX_ALIAS_VALUES:
+                raise YamlLimitError(f"aliases expand to more than {MAX_ALIAS_VALUES} values "
+                                     "(an alias bomb?)", line)
+        self.seen.add(key)
+        lines.lines.setdefault(path, line)
+        if isinstance(node, yaml.ScalarNode):
+            return self._scalar(node, path, problems)
+        self.open.add(key)
+        try:
+            if isinstance(node, yaml.MappingNode):
+                return self._mapping(node, path, lines, problems)
+            return [self.build(item, path + (i,), lines, problems)
+                    for i, item in enumerate(node.value)]
+        finally:
+            self.open.discard(key)
+
+    def _scalar(self, node: yaml.ScalarNode, path: PathKey, problems: list[Problem]) -> Any:
+        try:
+            return self.constructor.construct_object(node, deep=True)
+        except (yaml.YAMLError, ValueError, OverflowError) as exc:  # 2024-13-45, 10**5000
+            problems.append(Problem(format_path(path), node.start_mark.line + 1,
+                                    f"cannot read value {node.value[:40]!r}: {exc}"))
+            return None
+
+    def _mapping(self, node: yaml.MappingNode, path: PathKey, lines: LineMap,
+                 problems: list[Problem]) -> dict[str, Any]:
+        """A dict from a mapping node; reports duplicate and non-scalar keys.
+
+        Keys are always strings: a key YAML reads as another type keeps its text.
+        """
+        explicit = {id(k) for k, _ in node.value if k.tag != "tag:yaml.org,2002:merge"}
+        self.constructor.flatten_mapping(node)  # resolves "<<" merges: merged entries first
+        result: dict[str, Any] = {}
+        first_line: dict[str, int] = {}
+        for key_node, value_node in node.value:
+            line = key_node.start_mark.line + 1
+            if not isinstance(key_node, yaml.ScalarNode):
+                problems.append(Problem(format_path(path), line, "a key must be a plain value"))
+                continue
             key = key_node.value  # keys are names: 1, true, null stay as written ("1", "true")
-        if key in first_line and id(key_node) in explicit:
-            problems.append(Problem(format_path(path + (str(key),)), line,
-                                    f"duplicate key {key!r} (first at line {first_line[key]})"))
-        if id(key_node) in explicit:
-            first_line.setdefault(key, line)
-        child = path + (key,)
-        lines.lines[child] = line
-        result[key] = _build(value_node, child, lines, problems, loader)
-    return result
+            if key in first_line and id(key_node) in explicit:
+                problems.append(Problem(format_path(path + (key,)), line,
+                                        f"duplicate key {key!r} (first at line {first_line[key]})"))
+            if id(key_node) in explicit:
+                first_line.setdefault(key, line)
+            child = path + (key,)
+            lines.lines[child] = line
+            result[key] = self.build(value_node, child, lines, problems)
+        return result

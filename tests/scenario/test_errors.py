@@ -33,8 +33,10 @@ def test_missing_file(tmp_path: Path) -> None:
 def test_undecodable_file(tmp_path: Path) -> None:
     path = tmp_path / "latin.yaml"
     path.write_bytes(b"name: caf\xe9\n")
-    with pytest.raises(ScenarioError, match=r"latin\.yaml: cannot read the file: 'utf-8' codec"):
+    with pytest.raises(ScenarioError) as info:
         load_scenario(path)
+    assert str(info.value) == (f"{path}:1: the file is not UTF-8 text "
+                               "(byte 0xe9 at line 1, column 10)")
 
 
 def test_numeric_component_name(tmp_path: Path) -> None:
@@ -78,14 +80,11 @@ def test_wrong_types_and_ranges_show_the_value(tmp_path: Path) -> None:
             "    uncertainty: {m: {scale: x}}\n")
     assert problems(tmp_path, text) == [
         ":2: duration: Input should be greater than 0 (got -2)",
-        ":3: tick: Input should be a valid number, unable to parse string as a number "
-        "(got 'fast')",
+        ":3: tick: Input should be a valid number (got 'fast')",
         ":4: start_time: Input should be a finite number (got nan)",
-        ":8: components.v.parameters.m: Input should be a valid number, unable to parse "
-        "string as a number (got 'heavy')",
+        ":8: components.v.parameters.m: Input should be a valid number (got 'heavy')",
         ":8: components.v.parameters.Iz: Input should be a finite number (got inf)",
-        ":9: components.v.uncertainty.m.scale: Input should be a valid number, unable to "
-        "parse string as a number (got 'x')",
+        ":9: components.v.uncertainty.m.scale: Input should be a valid number (got 'x')",
     ]
 
 
