@@ -46,6 +46,7 @@ import numpy as np
 
 from cosim.component import Component, ComponentError, Port, Value
 from controllers.road.geometry import SpecError, spec_number
+from controllers.spec import MAX_LENGTH, MAX_REACH
 from controllers.planning.manoeuvres import (LateralPlan, ManoeuvrePlan, Option, Transition, offset_profile,
                                    plan_manoeuvre, transition_length)
 from controllers.road.builders import Road, frenet_from_base, road_from_spec
@@ -199,15 +200,20 @@ class Planner(Component):
             self.stop_at_end, self.start_from_rest = stop_at_end, start_from_rest
             if isinstance(laps, bool) or not isinstance(laps, int) or laps < 1:
                 raise SpecError(f"laps: expected an integer >= 1, got {laps!r}")
+            if self.road.closed and laps * self.road.length > MAX_LENGTH:  # the route is sampled
+                raise SpecError(f"laps: {laps} laps of {self.road.length:.6g} m make a route "
+                                f"longer than {MAX_LENGTH:g} m")
             self.laps = laps
-            self.distance = None if distance is None else spec_number(distance, "distance", positive=True)
-            self.back = spec_number(window_back, "window_back", positive=True)
-            self.launch = spec_number(launch_offset, "launch_offset", positive=True)
+            self.distance = None if distance is None else spec_number(
+                distance, "distance", positive=True, at_most=MAX_LENGTH)
+            self.back = spec_number(window_back, "window_back", positive=True, at_most=MAX_REACH)
+            self.launch = spec_number(launch_offset, "launch_offset", positive=True, at_most=MAX_REACH)
             self.range = spec_number(obstacle_range, "obstacle_range", positive=True)
             self.off_road = spec_number(off_road, "off_road", positive=True)
-            self.step_pts = self._spacing(spec_number(window_spacing, "window_spacing", positive=True),
-                                         spec_number(preview, "preview", positive=True),
-                                         spec_number(planner_period, "planner_period", positive=True))
+            self.step_pts = self._spacing(
+                spec_number(window_spacing, "window_spacing", positive=True, at_most=MAX_REACH),
+                spec_number(preview, "preview", positive=True, at_most=MAX_REACH),
+                spec_number(planner_period, "planner_period", positive=True, at_most=60.0))
         except SpecError as exc:
             raise ComponentError(f"parameter {exc}") from None
         self.progress = self.offset = 0.0

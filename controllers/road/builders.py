@@ -25,6 +25,7 @@ import numpy as np
 from controllers.road.frenet import frenet_from_base, frenet_to_world  # noqa: F401 (re-exported)
 from controllers.road.geometry import Path, SpecError, spec_number
 from controllers.road.opendrive import lane_from_opendrive
+from controllers.spec import MAX_LANES, MAX_LENGTH, MAX_REACH
 
 
 @dataclass(frozen=True)
@@ -37,10 +38,10 @@ class Road:
     _centres: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
-        if not isinstance(self.lanes, int) or self.lanes < 1:
-            raise SpecError(f"road.lanes: expected an integer >= 1, got {self.lanes!r}")
-        if not (np.isfinite(self.lane_width) and self.lane_width > 0):
-            raise SpecError(f"road.lane_width: expected a positive number, got {self.lane_width!r}")
+        if isinstance(self.lanes, bool) or not isinstance(self.lanes, int) \
+                or not 1 <= self.lanes <= MAX_LANES:
+            raise SpecError(f"road.lanes: expected an integer 1..{MAX_LANES}, got {self.lanes!r}")
+        spec_number(self.lane_width, "road.lane_width", positive=True, at_most=MAX_REACH)
 
     @property
     def length(self) -> float:
@@ -120,22 +121,27 @@ def satory_standin(lane_width: float = 3.5, lanes: int = 2) -> Road:
     return Road(Path.from_pieces(pieces, closed=True), lanes=lanes, lane_width=lane_width)
 
 
-def two_lane_road(length: float = 600.0, radius: float = 0.0, lane_width: float = 3.5,
+def two_lane_road(length: float = 600.0, radius: float | None = None, lane_width: float = 3.5,
                   lanes: int = 2, transition: float = 40.0) -> Road:
     """A two-lane road starting at the origin heading east: straight or with one bend.
 
     Args:
-        length: total length, m.
-        radius: 0 for a straight road; otherwise the signed radius (left
-            positive) of a bend in the middle half, entered and left through
-            clothoids of `transition` m, with straights of length/4 either side.
+        length: total length, m (at most MAX_LENGTH).
+        radius: None (left out) for a straight road; otherwise the signed radius
+            (left positive, never 0) of a bend in the middle half, entered and
+            left through clothoids of `transition` m, with straights of
+            length/4 either side.
         lane_width, lanes: lane layout.
         transition: clothoid length of the bend, m.
     """
-    length = spec_number(length, "road.length", positive=True)
+    length = spec_number(length, "road.length", positive=True, at_most=MAX_LENGTH)
+    if radius is None:
+        return Road(Path.from_pieces([(length, 0.0, 0.0)]), lanes=lanes, lane_width=lane_width)
     radius = spec_number(radius, "road.radius")
     if radius == 0:
-        return Road(Path.from_pieces([(length, 0.0, 0.0)]), lanes=lanes, lane_width=lane_width)
+        raise SpecError("road.radius: must not be 0 (leave radius out for a straight road; "
+                        "a negative radius bends right)")
+    transition = spec_number(transition, "road.transition", positive=True, at_most=MAX_LENGTH)
     k = 1.0 / radius
     arc = length / 2 - 2 * transition
     if arc <= 0:
@@ -170,6 +176,8 @@ def road_from_spec(spec, where: str = "road") -> Road:
             return BUILDERS[name](**kwargs)
         except TypeError as exc:
             raise SpecError(f"{where}: bad parameters for {name}: {exc}") from None
+        except SpecError as exc:  # a builder's field messages say "road.<field>" already
+            raise exc if str(exc).startswith(where) else SpecError(f"{where}: {exc}") from None
     if "opendrive" in spec:
         path, lanes, width = lane_from_opendrive(spec, where)
         return Road(path, lanes=lanes, lane_width=width)
@@ -177,7 +185,8 @@ def road_from_spec(spec, where: str = "road") -> Road:
     if "reference" not in spec or extra:
         raise SpecError(f"{where}: expected keys reference, lanes, lane_width, got {sorted(spec)}")
     lanes = spec.get("lanes", 2)
-    if isinstance(lanes, bool) or not isinstance(lanes, int):
-        raise SpecError(f"{where}.lanes: expected an integer, got {lanes!r}")
-    width = spec_number(spec.get("lane_width", 3.5), f"{where}.lane_width", positive=True)
+    if isinstance(lanes, bool) or not isinstance(lanes, int) or not 1 <= lanes <= MAX_LANES:
+        raise SpecError(f"{where}.lanes: expected an integer 1..{MAX_LANES}, got {lanes!r}")
+    width = spec_number(spec.get("lane_width", 3.5), f"{where}.lane_width", positive=True,
+                        at_most=MAX_REACH)
     return Road(Path.from_spec(spec["reference"], f"{where}.reference"), lanes=lanes, lane_width=width)

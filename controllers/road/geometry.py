@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controllers.spec import SpecError, spec_number
+from controllers.spec import MAX_LENGTH, SpecError, spec_number
 from controllers.road.spline import spline_knots
 
 _GL_T, _GL_W = np.polynomial.legendre.leggauss(10)
@@ -35,6 +35,8 @@ _GL_PAIRS = tuple(zip(_GL_T.tolist(), _GL_W.tolist()))
 MAX_TURN = 0.2          # rad of heading change per interval
 MAX_INTERVAL = 2.0      # m per interval: also the coarse grid of projections
 CLOSE_TOL = 1e-3        # m (and rad) a closed path may miss its start by
+MAX_KNOTS = 1_000_000   # intervals of one path (a tight or long path needs many): memory bound
+MAX_WAYPOINTS = 2_000   # the spline through them solves a dense system of this size
 
 
 @dataclass(frozen=True)
@@ -271,9 +273,16 @@ class Path:
             closed: check that the end meets the start (within CLOSE_TOL) and wrap s.
         """
         lens, k0s, k1s = [], [], []
-        for length, ka, kb in pieces:
-            turn = max(abs(ka), abs(kb)) * length
-            n = max(1, int(np.ceil(max(turn / MAX_TURN, length / MAX_INTERVAL))))
+        total = sum(length for length, _, _ in pieces)
+        if not total <= MAX_LENGTH:
+            raise SpecError(f"path of {total:g} m is longer than {MAX_LENGTH:g} m")
+        need = [max(max(abs(ka), abs(kb)) * length / MAX_TURN, length / MAX_INTERVAL)
+                for length, ka, kb in pieces]
+        if not sum(need) <= MAX_KNOTS:
+            raise SpecError(f"path too winding: its curvature needs {sum(need):.3g} intervals "
+                            f"(at most {MAX_KNOTS}); is a radius far too small?")
+        for (length, ka, kb), count in zip(pieces, need):
+            n = max(1, int(np.ceil(count)))
             edges = np.linspace(0.0, 1.0, n + 1)
             lens.extend(np.full(n, length / n))
             k0s.extend(ka + (kb - ka) * edges[:-1])
@@ -328,7 +337,10 @@ class Path:
             closed: periodic spline and wrapping s.
             samples_per_span: knots per spline span.
         """
-        s, x, y, psi, kappa = spline_knots(np.asarray(points, dtype=float), closed, samples_per_span)
+        points = np.asarray(points, dtype=float)
+        if points.ndim >= 1 and points.shape[0] > MAX_WAYPOINTS:
+            raise SpecError(f"{points.shape[0]} waypoints, more than {MAX_WAYPOINTS}")
+        s, x, y, psi, kappa = spline_knots(points, closed, samples_per_span)
         return cls(s, x, y, psi, kappa[:-1], kappa[1:], closed=closed)
 
     @classmethod

@@ -10,6 +10,7 @@ that a component's constructor rejected its YAML file, line and path.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -85,5 +86,21 @@ def locate_parameter_problem(scenario: Any, exc: BaseException) -> UserError | N
     spec = scenario.components.get(component)
     if spec is None or parameter not in (getattr(spec, "parameters", None) or {}):
         return None
-    return UserError(f"{scenario.where(('components', component, 'parameters', parameter))}: "
-                     f"{exc.problem}")  # type: ignore[attr-defined]
+    path, problem = _field_of(("components", component, "parameters", parameter),
+                              str(exc.problem))  # type: ignore[attr-defined]
+    return UserError(f"{scenario.where(path)}: {problem}")
+
+
+_FIELD = re.compile(r"((?:\.[A-Za-z_]\w*|\[\d+\])*): (.*)", re.DOTALL)
+
+
+def _field_of(path: tuple[str | int, ...], problem: str) -> tuple[tuple[str | int, ...], str]:
+    """A problem that starts with a field inside the parameter ("road.radius: must be > 0")
+    gives that field's path and the rest of the message; otherwise both unchanged."""
+    name = str(path[-1])
+    match = _FIELD.match(problem, len(name)) if problem.startswith(name) else None
+    if match is None:
+        return path, problem
+    keys = [int(k[1:-1]) if k.startswith("[") else k[1:]
+            for k in re.findall(r"\.[A-Za-z_]\w*|\[\d+\]", match.group(1))]
+    return path + tuple(keys), match.group(2)

@@ -261,8 +261,11 @@ class Scenario(BaseModel):
         return Problem(format_path(path), self.line_of(path), message)
 
     def where(self, path: tuple[str | int, ...]) -> str:
-        """"FILE:LINE: PATH" for messages of other layers (FMU checks, wiring)."""
-        return self.problem(path, "").format(self._file).rstrip(": ")
+        """"FILE:LINE: PATH" for messages of other layers (FMU checks, wiring), with
+        " (set by --set ...)" when an override put the value there."""
+        where = Problem(format_path(path), self.line_of(path), "").format(self._file)
+        override = self._lines.override_of(path)
+        return where.rstrip(": ") + (f" (set by --set {override})" if override else "")
 
     # ---- what the master asks ---------------------------------------------------------
     @property

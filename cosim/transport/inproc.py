@@ -17,6 +17,7 @@ from collections.abc import Mapping
 from cosim.component import Component, ComponentError, Port, Value, ports_by_name
 from cosim.errors import ComponentFailure, UserError, did_you_mean
 from cosim.transport.launch import PythonComponentLaunch  # re-exported: its historical home
+from cosim.transport.parameters import ParameterProblem, check_parameters  # ParameterProblem re-exported
 
 
 def import_component_class(class_path: str, component: str) -> type[Component]:
@@ -49,57 +50,19 @@ def import_component_class(class_path: str, component: str) -> type[Component]:
     return cls
 
 
-class ParameterProblem(UserError):
-    """A component's constructor rejects one of its scenario parameters.
-
-    The master maps it to the parameter's YAML file, line and path
-    (`cosim.execution.run.locate_parameter_problem`); its plain text names the component.
-
-    Args:
-        component: the component's scenario name.
-        parameter: the parameter's name.
-        problem: what is wrong with it.
-    """
-
-    def __init__(self, component: str, parameter: str, problem: str) -> None:
-        super().__init__(f"component {component!r}: parameters.{parameter}: {problem}")
-        self.component, self.parameter, self.problem = component, parameter, problem
-
-
-_LEADING_NAME = re.compile(r"[A-Za-z_]\w*")
-
-
-def check_parameter_names(cls: type, launch: PythonComponentLaunch) -> None:
-    """Reject a parameter that the class's constructor does not take.
-
-    Args:
-        cls: the component class.
-        launch: the component's launch (name and parameters).
-    Raises:
-        ParameterProblem for the first unknown parameter, with a spelling hint
-        and the known names.
-    """
-    try:
-        signature = inspect.signature(cls)
-    except (TypeError, ValueError):
-        return  # no signature to hold the names against: the constructor decides
-    params = signature.parameters.values()
-    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
-        return
-    known = [p.name for p in params
-             if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)]
-    for name in launch.parameters:
-        if name not in known:
-            raise ParameterProblem(launch.name, name, f"unknown parameter {name!r}"
-                                   f"{did_you_mean(name, known)}; known: {', '.join(known)}")
+_LEADING_NAME = re.compile(r"(?:parameter )?([A-Za-z_]\w*)")
 
 
 def _problem_of(launch: PythonComponentLaunch, exc: Exception) -> ParameterProblem | None:
-    """The parameter a constructor's error message starts with ("ke[0] must be > 0"), if any."""
+    """The parameter a constructor's error message starts with ("ke[0] must be > 0",
+    "parameter road.radius: ..."), if any; the problem keeps the field path it names."""
+    text = describe_exception(exc)
     match = _LEADING_NAME.match(str(exc))
-    if match is None or match.group() not in launch.parameters:
+    if match is None or match.group(1) not in launch.parameters:
         return None
-    return ParameterProblem(launch.name, match.group(), describe_exception(exc))
+    if isinstance(exc, ComponentError):
+        text = str(exc)[match.start(1):]
+    return ParameterProblem(launch.name, match.group(1), text)
 
 
 def construct_component(launch: PythonComponentLaunch) -> Component:
@@ -112,7 +75,7 @@ def construct_component(launch: PythonComponentLaunch) -> Component:
         parameters or declares invalid ports.
     """
     cls = import_component_class(launch.class_path, launch.name)
-    check_parameter_names(cls, launch)
+    check_parameters(cls, launch)
     try:
         instance = cls(**dict(launch.parameters))
         ports_by_name(tuple(instance.inputs))
