@@ -22,6 +22,8 @@ from collections.abc import Sequence  # noqa: E402
 import typer  # noqa: E402
 
 from cosim.cli import analysis, distributed, fmus, foxglove, results, run, scenario, watch  # noqa: E402
+from cosim.cli.common import EXIT_USER_ERROR, user_error_exit  # noqa: E402
+from cosim.errors import UserError  # noqa: E402
 
 app = typer.Typer(add_completion=True, no_args_is_help=True,
                   context_settings={"help_option_names": ["-h", "--help"]},
@@ -88,11 +90,44 @@ def main(argv: Sequence[str] | None = None) -> int:
         interrupts.restore()
     command = typer.main.get_command(app)
     try:
-        command.main(args=args, prog_name="cosim", standalone_mode=True)
-    except SystemExit as exc:  # standalone mode always ends with SystemExit
+        result = command.main(args=args, prog_name="cosim", standalone_mode=False)
+    except typer.Abort:
+        print("Aborted!", file=sys.stderr)
+        return 1
+    except _click_errors() as exc:  # a bad option, argument or command
+        return _option_error(exc)
+    except SystemExit as exc:  # a command that exits itself
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)
-    return 0
+    return result if isinstance(result, int) else 0
+
+
+def _click_errors() -> tuple[type[Exception], ...]:
+    """The base classes of click's errors (typer >= 0.20 carries its own click)."""
+    errors: list[type[Exception]] = []
+    if hasattr(typer, "TyperException"):
+        errors.append(typer.TyperException)
+    try:
+        import click
+    except ImportError:
+        return tuple(errors)
+    return (*errors, click.ClickException)
+
+
+def _option_error(exc: Exception) -> int:
+    """Print click's error as one line naming the command and its help; its exit status.
+
+    `cosim` alone (no arguments) still prints the help.
+    """
+    code = int(getattr(exc, "exit_code", EXIT_USER_ERROR))
+    if type(exc).__name__ == "NoArgsIsHelpError":
+        exc.show()  # type: ignore[attr-defined]
+        return code
+    ctx = getattr(exc, "ctx", None)
+    path = ctx.command_path if ctx is not None else "cosim"
+    message = exc.format_message() if hasattr(exc, "format_message") else str(exc)
+    user_error_exit(UserError(f"{path}: {message} (see '{path} --help')"))
+    return code
 
 
 if __name__ == "__main__":

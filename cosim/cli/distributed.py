@@ -15,7 +15,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from cosim.cli.common import user_error_exit
+from cosim.cli.common import check_endpoint, user_error_exit
 from cosim.errors import UserError
 
 
@@ -28,6 +28,9 @@ def load_settings(deploy: Optional[Path], listen: list[str], connect: list[str])
     """
     from cosim.distributed.deploy import load_deploy, merge_endpoints
 
+    for option, values in (("--listen", listen), ("--connect", connect)):
+        for endpoint in values:
+            check_endpoint(endpoint, option)
     return merge_endpoints(load_deploy(deploy) if deploy else None, listen, connect)
 
 

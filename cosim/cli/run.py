@@ -24,6 +24,7 @@ from cosim.cli.common import user_error_exit
 from cosim.errors import UserError
 from cosim.execution.finish import analyse_run_folder  # shared with cosim.run (the Python API)
 from cosim.scenario.shipped import resolve_scenario
+from cosim.execution.limits import DEFAULT_MAX_TICKS, RunLimits
 
 DEFAULT_TRANSPORT = "zenoh"  # DESIGN.md: each Python component its own OS process
 EXIT_FAILED_RUN = 1
@@ -45,7 +46,7 @@ def run(
     scenario: Optional[str] = typer.Argument(
         None, help="scenario YAML file, or a shipped scenario's name (none: list them)",
         show_default=False),
-    out: Optional[Path] = typer.Option(None, "--out", help="run folder (default: runs/<name>-<UTC time>)"),
+    out: Optional[str] = typer.Option(None, "--out", help="run folder (default: runs/<name>-<UTC time>)"),
     transport: str = typer.Option(DEFAULT_TRANSPORT, "--transport", help="inproc | zenoh"),
     set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE (YAML value), repeatable"),
     realtime: Optional[float] = typer.Option(
@@ -63,6 +64,11 @@ def run(
         None, "--foxglove", help="serve the run live to Foxglove on PORT (bare --foxglove: 8765)"),
     foxglove_host: str = typer.Option("127.0.0.1", "--foxglove-host",
                                       help="loopback address of the Foxglove server"),
+    max_ticks: int = typer.Option(DEFAULT_MAX_TICKS, "--max-ticks",
+                                  help="refuse a run of more ticks than this"),
+    allow_large: bool = typer.Option(False, "--allow-large",
+                                     help="no limit on ticks or CSV size (10 GB by default)"),
+    force: bool = typer.Option(False, "--force", help="let --out replace an existing run folder"),
 ) -> None:
     """Run a scenario and write its run folder.
 
@@ -85,6 +91,8 @@ def run(
         if mcap:
             from cosim.cli.foxglove import require_foxglove
             require_foxglove("--mcap")
+        limits = RunLimits(max_ticks, allow_large)
+        out_dir = check_out_option(out, force)
     except UserError as error:
         raise user_error_exit(error) from None
     early = None
@@ -93,9 +101,9 @@ def run(
             from cosim.execution.prestart import prestart_components
 
             early = prestart_components(scenario_file)  # their start overlaps the scenario's load
-        result = _load_and_run(scenario_file, set_, out, (deploy, listen, connect), clock,
+        result = _load_and_run(scenario_file, set_, out_dir, (deploy, listen, connect), clock,
                                (foxglove, foxglove_host), transport=transport, realtime=realtime,
-                               place=place, deadline_s=deadline, prestart=early)
+                               place=place, deadline_s=deadline, prestart=early, limits=limits)
     except UserError as error:
         raise user_error_exit(error) from None
     except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
@@ -118,6 +126,31 @@ def _list_shipped() -> typer.Exit:
           "cosim run -h for the options)\nshipped scenarios:")
     print(listing())
     return typer.Exit(0)
+
+
+def check_out_option(out: Optional[str], force: bool) -> Optional[Path]:
+    """The `--out` folder: not empty text, and not a non-empty folder unless --force.
+
+    Args:
+        out: the `--out` value (None: a fresh folder under runs/).
+        force: `--force`, which lets the run write into an existing folder
+            (files of the same name are replaced, others stay).
+    Raises:
+        UserError for '' or an existing non-empty folder without --force.
+    """
+    if out is None:
+        return None
+    if not out.strip():
+        raise UserError("--out needs a folder name, got an empty one")
+    folder = Path(out)
+    try:
+        occupied = folder.is_dir() and any(folder.iterdir())
+    except OSError as exc:
+        raise UserError(f"--out {out}: cannot read the folder: {exc.strerror or exc}") from None
+    if occupied and not force:
+        raise UserError(f"--out {out}: the folder exists and is not empty (another run?); "
+                        "choose another folder, or pass --force to write into it")
+    return folder
 
 
 def _interrupted_exit(stop_error: str | None = None) -> typer.Exit:

@@ -9,11 +9,16 @@ import typer
 
 from cosim.cli.common import user_error_exit
 from cosim.errors import UserError
+from cosim.execution.limits import DEFAULT_MAX_TICKS, RunLimits
 
 
 def validate(file: str = typer.Argument(..., help="scenario YAML file, or a shipped scenario's name"),
-             set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE")) -> None:
-    """Check a scenario (schema, FMUs, parameters, wiring) without running it.
+             set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE"),
+             max_ticks: int = typer.Option(DEFAULT_MAX_TICKS, "--max-ticks",
+                                           help="refuse a run of more ticks than this"),
+             allow_large: bool = typer.Option(False, "--allow-large",
+                                              help="no limit on ticks or CSV size")) -> None:
+    """Check a scenario (schema, FMUs, parameters, wiring, run size) without running it.
 
     Example: cosim validate lane_change --set 'duration=10'
     """
@@ -22,7 +27,8 @@ def validate(file: str = typer.Argument(..., help="scenario YAML file, or a ship
     from cosim.scenario.shipped import resolve_scenario
 
     try:
-        checked = validate_scenario(load_scenario(resolve_scenario(file), overrides=set_))
+        limits = RunLimits(max_ticks, allow_large)
+        checked = validate_scenario(load_scenario(resolve_scenario(file), overrides=set_), limits)
     except UserError as error:
         raise user_error_exit(error) from None
     print(f"{file}: ok ({len(checked['components'])} components, {len(checked['edges'])} "

@@ -28,7 +28,7 @@ from typing import Optional
 
 import typer
 
-from cosim.cli.common import user_error_exit
+from cosim.cli.common import check_endpoint, user_error_exit
 from cosim.errors import UserError
 
 MANIFEST_WAIT_S = 10.0  # a run folder named just after `cosim run` printed it
@@ -173,6 +173,8 @@ def watch(
     try:
         if every < 1 or count < 0:
             raise UserError(f"--every must be >= 1 and --count >= 0, got {every} and {count}")
+        if connect is not None:
+            check_endpoint(connect, "--connect")
         run_id, endpoint = resolve_target(target, connect, MANIFEST_WAIT_S)
         check_reachable(endpoint)
         what = "every run" if run_id == "*" else f"run {run_id}"

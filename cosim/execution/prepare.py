@@ -16,6 +16,7 @@ from typing import Any
 
 from cosim.errors import UserError
 from cosim.scenario.imports import add_import_roots, import_roots
+from cosim.execution.limits import RunLimits
 from cosim.transport.launch import PythonComponentLaunch
 
 
@@ -38,6 +39,7 @@ class PreparedRun:
         fmus: the FMU components in file order.
         launches: the Python components (sources included) in file order.
         names: every component name in declaration order (components, then sources).
+        limits: how large the run may be (ticks, CSV size).
     """
 
     scenario: Any
@@ -46,6 +48,7 @@ class PreparedRun:
     names: list[str]
     placement: dict[str, str] = field(default_factory=dict)
     deploy: Any = None
+    limits: RunLimits = field(default_factory=RunLimits)
 
 
 def prepare_run(scenario: Any) -> PreparedRun:

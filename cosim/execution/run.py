@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 from cosim.errors import UserError
 from cosim.transport.launch import PythonComponentLaunch
 from cosim.execution.abort import locate_parameter_problem, start_failure_text, write_start_failure
+from cosim.execution.limits import RunLimits, check_recorded_size, check_ticks
 from cosim.execution.prepare import PreparedRun, component_names, plan_fmu, plan_fmus, plan_launches
 from cosim.engine.startup import StartupClock
 
@@ -35,6 +36,7 @@ if TYPE_CHECKING:  # loaded when needed: the Zenoh processes start before numpy/
 
 TRANSPORTS = ("inproc", "zenoh")
 DEFAULT_DEADLINE_S = 10.0
+MIN_REALTIME = 1e-3  # slower pacing looks like a hang: one tick of 10 ms would take 10 s
 
 
 @dataclass
@@ -72,7 +74,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  on_live: Callable[[str, str], None] | None = None,
                  prestart: Any = None,
                  on_folder: Callable[[Path], None] | None = None,
-                 observers: Sequence[Any] = ()) -> RunResult:
+                 observers: Sequence[Any] = (),
+                 limits: RunLimits | None = None) -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -100,6 +103,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             fails before tick 0 leaves a manifest.json with status "failed".
         observers: more master observers (e.g. cosim.foxglove.live.FoxgloveLive),
             after the recorder; they must only read the signal store.
+        limits: how large the run may be (cosim.execution.limits; default: the defaults).
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -107,6 +111,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         UserError for anything wrong before tick 0 (scenario, FMU, wiring).
     """
     check_run_options(transport, realtime)
+    limits = limits or RunLimits()
+    check_ticks(scenario, limits)  # before the run folder: a refused run leaves nothing
     clock = clock or StartupClock.from_now()
     with contextlib.ExitStack() as stack:
         if prestart is not None:
@@ -126,7 +132,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                                        prestart, clock, on_live)
             local_fmus = [p for p in plan_fmus(scenario) if p.name not in placement]
             prepared = PreparedRun(scenario, local_fmus, launches, component_names(scenario),
-                                   placement, deploy)
+                                   placement, deploy, limits)
             hosted = _host_components(prepared, remote, clock)
             return _execute(prepared, hosted, remote, out, transport, run_id, realtime,
                             progress, clock, observers)
@@ -158,8 +164,9 @@ def check_run_options(transport: str, realtime: float | None) -> None:
     """
     if transport not in TRANSPORTS:
         raise UserError(f"unknown transport {transport!r} (choose from {', '.join(TRANSPORTS)})")
-    if realtime is not None and not realtime > 0:
-        raise UserError(f"--realtime factor must be > 0, got {realtime!r}")
+    if realtime is not None and not MIN_REALTIME <= realtime < float("inf"):
+        raise UserError(f"--realtime factor must be a number from {MIN_REALTIME:g} "
+                        f"(1000 times slower than real time) up, got {realtime!r}")
 
 
 def _placement(scenario: Any, place: Sequence[str], transport: str) -> dict[str, str]:
@@ -288,6 +295,8 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
     scenario = prepared.scenario
     master, recorder, pacer, bar = _build_master(scenario, hosted, remote, out,
                                                  realtime, progress, extra_observers)
+    check_recorded_size(scenario, master.layout,
+                        {n: c.period_ticks for n, c in hosted.items()}, prepared.limits)
     manifest = base_manifest(scenario, prepared, hosted, transport, run_id, master.order)
     live = None
     if remote is not None:  # where a watcher connects to see the run live

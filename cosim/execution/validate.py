@@ -13,9 +13,10 @@ from typing import Any
 
 from cosim.errors import UserError
 from cosim.execution.abort import locate_parameter_problem
+from cosim.execution.limits import RunLimits, check_recorded_size, check_ticks
 
 
-def validate_scenario(scenario: Any) -> dict[str, Any]:
+def validate_scenario(scenario: Any, limits: RunLimits | None = None) -> dict[str, Any]:
     """Check a scenario as far as possible without running it.
 
     Resolves and describes the FMUs, checks parameters, constructs the Python
@@ -24,6 +25,7 @@ def validate_scenario(scenario: Any) -> dict[str, Any]:
 
     Args:
         scenario: a validated `cosim.scenario.loader.Scenario`.
+        limits: how large the run may be (default: the defaults of `cosim run`).
     Returns:
         {"components": name -> (inputs, outputs), "edges": [...], "order": [...]}.
     Raises:
@@ -32,8 +34,12 @@ def validate_scenario(scenario: Any) -> dict[str, Any]:
     from cosim.transport.inproc import construct_component
     from cosim.execution.prepare import prepare_run
 
+    limits = limits or RunLimits()
+    check_ticks(scenario, limits)
     try:
-        return _validate_prepared(scenario, prepare_run(scenario), construct_component)
+        prepared = prepare_run(scenario)
+        prepared.limits = limits
+        return _validate_prepared(scenario, prepared, construct_component)
     except UserError as exc:
         located = locate_parameter_problem(scenario, exc)
         if located is not None:
@@ -60,7 +66,9 @@ def _validate_prepared(scenario: Any, prepared: Any,
     ports = {name: ports[name] for name in prepared.names}
     edges = resolve_wiring(scenario, ports,
                            {plan.name: plan.interface.unsupported for plan in prepared.fmus})
-    build_layout({n: _Ports(*p) for n, p in ports.items()}, edges)
+    layout = build_layout({n: _Ports(*p) for n, p in ports.items()}, edges)
+    periods = {plan.name: plan.period_ticks for plan in [*prepared.fmus, *prepared.launches]}
+    check_recorded_size(scenario, layout, periods, prepared.limits)
     order = step_order(prepared.names, feedthrough, edges)
     return {"components": ports, "edges": edges, "order": order}
 

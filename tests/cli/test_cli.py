@@ -158,6 +158,8 @@ def test_validate_foreign_fmu_name_map_and_parameter_range(tmp_path, lag_fmus, c
     assert "y_output" in err and "Traceback" not in err
 
 
-def test_non_positive_realtime_factor_exit_2(good, capsys):
-    assert main(["run", str(good), "--transport", "inproc", "--realtime", "0"]) == 2
-    assert "--realtime factor must be > 0, got 0.0" in capsys.readouterr().err
+@pytest.mark.parametrize("factor", ["0", "1e-9", "inf", "nan"])
+def test_realtime_factor_out_of_range_exit_2(good, capsys, factor):
+    assert main(["run", str(good), "--transport", "inproc", "--realtime", factor]) == 2
+    assert (f"--realtime factor must be a number from 0.001 (1000 times slower than real "
+            f"time) up, got {float(factor)!r}") in capsys.readouterr().err
