@@ -111,3 +111,18 @@ class ComponentFailure(UserError):
         super().__init__(
             f"component {component!r} failed {when} (t={time:.10g} s): {cause}"
         )
+
+
+class RunFolderError(UserError):
+    """The run folder cannot be written: "cannot write the run folder X: <reason> at tick k".
+
+    Args:
+        folder: the run folder.
+        reason: an OSError (its strerror is shown) or a text.
+        tick: the tick being recorded, or None when not known.
+    """
+
+    def __init__(self, folder: str | Path, reason: OSError | str, tick: int | None = None) -> None:
+        text = reason if isinstance(reason, str) else (reason.strerror or str(reason))
+        super().__init__(f"cannot write the run folder {folder}: {text}"
+                         + (f" at tick {tick}" if tick is not None else ""))

@@ -187,7 +187,8 @@ class Planner(Component):
         """
         if unknown:
             known = [n for n in Planner.__init__.__code__.co_varnames[1:Planner.__init__.__code__.co_argcount]]
-            raise ComponentError(f"unknown parameters {sorted(unknown)} (known: {', '.join(known)})")
+            first = sorted(unknown)[0]  # named first, so the scenario's line of it is shown
+            raise ComponentError(f"{first}: unknown parameters {sorted(unknown)} (known: {', '.join(known)})")
         try:
             self.road = road_from_spec(road)
             self.lane = self.road.check_lane(lane, "lane")

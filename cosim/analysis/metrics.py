@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from cosim.analysis.cones import cone_hits
+from cosim.results.jsonfile import write_text_atomically
 from cosim.analysis.rundata import (AnalysisError, RunData, load_run, loaded_run,
                                    read_json_object)
 
@@ -272,10 +273,10 @@ def write_metrics(run_dir: str | Path, skip_s: float | None = None,
     path = run_dir / "metrics.json"
     merged = {k: v for k, v in read_json_object(path).items() if k not in METRIC_NAMES}
     merged.update(report.values)
-    path.write_text(json.dumps(merged, indent=2) + "\n")
+    write_text_atomically(path, json.dumps(merged, indent=2) + "\n")  # no 0-byte file on a full disk
     notes_path = run_dir / NOTES_FILE
     if report.notes:
-        notes_path.write_text("\n".join(report.notes) + "\n")
+        write_text_atomically(notes_path, "\n".join(report.notes) + "\n")
     elif notes_path.exists():
         notes_path.unlink()
     return report

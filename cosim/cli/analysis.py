@@ -144,6 +144,12 @@ def sweep(scenario: str = typer.Argument(..., help="scenario YAML file, or a shi
 
         typer.echo(f"figure: {draw_sweep_histograms(result)}")
     typer.echo(f"results: {result.out_dir}")
+    if result.failures:  # the sweep is a failure unless every sample ran
+        failed = ", ".join(str(f.index) for f in result.failures)
+        Console(stderr=True, highlight=False, soft_wrap=True).print(
+            f"[red]sweep failed:[/red] {len(result.failures)} of {len(result.samples)} samples "
+            f"failed (samples {failed}; see samples.csv)", markup=True)
+        raise typer.Exit(1)
 
 
 def register(app: typer.Typer) -> None:

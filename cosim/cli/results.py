@@ -1,4 +1,5 @@
-"""`cosim recover`: rebuild the CSV files of a run whose master was killed."""
+"""`cosim recover`: rebuild the CSV files and the manifest of a run whose master was killed
+or whose folder could not be written."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from cosim.errors import UserError
 def recover(run_dir: Path = typer.Argument(..., help="run folder of a master that was killed"),
             keep_spool: bool = typer.Option(False, "--keep-spool", help="keep the *.f64 spools")) -> None:
     """Rebuild a run folder's CSV files from its recording spools."""
-    from cosim.results.recorder import recover as recover_csv
+    from cosim.results.recover import recover as recover_csv
 
     try:
         done = recover_csv(run_dir, keep_spool=keep_spool)

@@ -220,7 +220,7 @@ def _finish_run(result: Any, figures: bool, mcap: bool = False) -> None:
     """
     from cosim.cli.summary import print_summary
 
-    if result.ticks > 0:
+    if result.ticks > 0 and result.out_dir.is_dir():  # a removed folder has nothing to analyse
         for note in analyse_run_folder(result, figures):
             print(note)
         if mcap or getattr(result, "mcap", False):

@@ -51,13 +51,16 @@ def write_start_failure(out: Path, scenario: Any, run_id: str, transport: str,
     manifest_path = out / "manifest.json"
     if _final_status(manifest_path) is not None:
         return
-    write_json(manifest_path, {
-        **run_identity(scenario, run_id, transport, "failed", error, "failed_utc"),
-        "ticks": 0,
-        "sim_time_s": 0.0,
-        "time_to_tick0_s": None,
-        "startup": startup,
-    })
+    try:
+        write_json(manifest_path, {
+            **run_identity(scenario, run_id, transport, "failed", error, "failed_utc"),
+            "ticks": 0,
+            "sim_time_s": 0.0,
+            "time_to_tick0_s": None,
+            "startup": startup,
+        })
+    except UserError:  # the folder cannot be written: the error itself is reported
+        pass
 
 
 def _final_status(manifest_path: Path) -> str | None:

@@ -86,9 +86,7 @@ def plan_launches(scenario: Any, import_classes: bool = True) -> list[PythonComp
         default = None
         # sources are the platform's own classes, which declare no default period
         if import_classes or (spec.period is None and name not in scenario.sources):
-            from cosim.transport.inproc import import_component_class
-
-            cls = import_component_class(spec.python, name)
+            cls = _import_class(scenario, name, spec.python)
             default = getattr(cls, "default_period", None)
         period = scenario.period_ticks(name, default)
         parameters = with_data_files(dict(spec.parameters), scenario.base_dir)
@@ -113,6 +111,17 @@ def with_data_files(parameters: Any, base_dir: Path) -> Any:
     if isinstance(parameters, list):
         return [with_data_files(v, base_dir) for v in parameters]
     return parameters
+
+
+def _import_class(scenario: Any, name: str, class_path: str) -> type:
+    """A component's class; a class that cannot be imported is named at its `python:` line."""
+    from cosim.transport.inproc import import_component_class
+
+    try:
+        return import_component_class(class_path, name)
+    except UserError as exc:
+        section = "sources" if name in scenario.sources else "components"
+        raise UserError(f"{scenario.where((section, name, 'python'))}: {exc}") from None
 
 
 def plan_fmus(scenario: Any) -> list[FmuPlan]:

@@ -290,7 +290,7 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
              clock: StartupClock, extra_observers: Sequence[Any] = ()) -> RunResult:
     """Run the master over the hosted components and write the run folder."""
     from cosim.results.manifest import base_manifest, finish_manifest
-    from cosim.results.recorder import write_json
+    from cosim.results.recorder import write_json, write_json_in_place
 
     scenario = prepared.scenario
     master, recorder, pacer, bar = _build_master(scenario, hosted, remote, out,
@@ -314,13 +314,19 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
         failure = exc
     finally:
         wall = time.perf_counter() - started
-        recorder.close()
+        try:
+            recorder.close()
+        except UserError as exc:  # the run folder cannot be written (RunFolderError)
+            failure = failure if failure is not None else exc
         if bar is not None:
             bar.close()
         by_component, stop_errors = master.stop_all()
         metrics = {f"{c}.{k}": v for c in master.order if c in by_component
                    for k, v in sorted(by_component[c].items())}
-        write_json(out / "metrics.json", metrics)
+        try:
+            write_json(out / "metrics.json", metrics)
+        except UserError as exc:
+            failure = failure if failure is not None else exc
     errors = ([_failure_text(failure)] if failure is not None else []) + stop_errors
     ticks = max(master.ticks_done, 0)
     result = RunResult(out, "failed" if errors else "ok", "; ".join(errors) or None, ticks,
@@ -328,7 +334,7 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
                        (ticks * scenario.tick / wall) if wall > 0 else float("inf"),
                        metrics, pacer.stats() if pacer else None,
                        clock.marks.get("tick0"), clock.as_dict(), live)
-    write_json(out / "manifest.json", finish_manifest(manifest, result))
+    write_json_in_place(out / "manifest.json", finish_manifest(manifest, result))
     if failure is not None and not isinstance(failure, (UserError, KeyboardInterrupt)):
         raise failure
     return result

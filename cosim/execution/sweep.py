@@ -178,6 +178,34 @@ def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: 
     return run_metrics(load_run(run_dir))
 
 
+def check_samples(scenario_path: Path, samples: Sequence[Sequence[str]],
+                  shown: int = 5) -> None:
+    """Validate the scenario with every sample's overrides, as `cosim validate` does.
+
+    Args:
+        scenario_path: the scenario YAML.
+        samples: each sample's "PATH=VALUE" overrides (fixed ones first).
+        shown: how many invalid samples the message lists.
+    Raises:
+        UserError listing the invalid samples (index, overrides, problem), one a line.
+    """
+    from cosim.errors import UserError
+    from cosim.execution.validate import validate_scenario
+    from cosim.scenario.loader import load_scenario
+
+    bad: list[str] = []
+    for index, overrides in enumerate(samples):
+        try:
+            validate_scenario(load_scenario(scenario_path, list(overrides)))
+        except UserError as exc:
+            bad.append(f"sample {index} ({' '.join(overrides)}): "
+                       + str(exc).replace("\n", "; "))
+    if bad:
+        more = f"\n... and {len(bad) - shown} more" if len(bad) > shown else ""
+        raise UserError(f"sweep refused before its first run: {len(bad)} of {len(samples)} "
+                        "samples are invalid:\n" + "\n".join(bad[:shown]) + more)
+
+
 def _run_task(run_fn: RunFunction, scenario_path: Path, transport: str, roots: tuple[str, ...],
               index: int, overrides: list[str], run_dir: Path) -> tuple[str, dict[str, float], str]:
     """One Dask task: run a sample, turn any failure into a "failed" status and message.
@@ -324,6 +352,8 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
     (out / "samples").mkdir(parents=True, exist_ok=True)
     jobs = [(i, list(sets) + [format_override(v.path, x) for v, x in zip(parsed, row)],
              (out / "samples" / f"sample_{i:04d}").resolve()) for i, row in enumerate(points)]
+    if run_fn is None:  # real runs: refuse a bad scenario or sample before the first one
+        check_samples(scenario_path, [overrides for _, overrides, _ in jobs])
     task = partial(_run_task, run_fn or run_scenario_sample, scenario_path, transport,
                    import_roots(scenario_path))
     outcomes = execute_samples(task, jobs, scheduler, cluster_options)

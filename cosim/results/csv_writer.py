@@ -94,9 +94,21 @@ def write_header(spool_path: Path, csv_name: str, columns: list[str]) -> SpoolHe
     data = {"format": SPOOL_FORMAT, "csv": csv_name, "columns": list(columns),
             "byteorder": sys.byteorder}
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(json.dumps(data) + "\n", encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError:  # a full disk: no half-written .tmp stays behind
+        _discard(tmp)
+        raise
     return SpoolHeader(path, tuple(columns), csv_name, sys.byteorder)
+
+
+def _discard(path: Path) -> None:
+    """Remove a temporary file if it is there and can be removed."""
+    try:
+        path.unlink()
+    except OSError:
+        pass
 
 
 def read_header(path: Path) -> SpoolHeader:
@@ -243,16 +255,20 @@ def rebuild_csv(header: SpoolHeader) -> tuple[int, int]:
         raise SpoolError(f"{spool}: cannot read the spool: {exc.strerror}") from None
     size, formatter, rows = header.row_bytes, RowFormatter(len(header.columns), header.byteorder), 0
     tmp = header.csv_path.with_name(header.csv + ".tmp")
-    with source, open(tmp, "w", encoding="ascii", newline="\n") as out:
-        out.write(header.csv_header_line())
-        tail = b""
-        while chunk := source.read(CHUNK_BYTES // size * size):
-            data = tail + chunk
-            whole = len(data) // size * size
-            out.write(formatter.format(data[:whole]))
-            rows += whole // size
-            tail = data[whole:]
-    os.replace(tmp, header.csv_path)
+    try:
+        with source, open(tmp, "w", encoding="ascii", newline="\n") as out:
+            out.write(header.csv_header_line())
+            tail = b""
+            while chunk := source.read(CHUNK_BYTES // size * size):
+                data = tail + chunk
+                whole = len(data) // size * size
+                out.write(formatter.format(data[:whole]))
+                rows += whole // size
+                tail = data[whole:]
+        os.replace(tmp, header.csv_path)
+    except OSError:  # a full disk: no half-written .tmp stays behind
+        _discard(tmp)
+        raise
     return rows, len(tail)
 
 

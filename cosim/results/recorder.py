@@ -17,14 +17,18 @@ caller runs in `finally`) lets it finish, checks its row counts (rebuilding
 the CSV in this process if the writer failed) and removes the spools unless
 `keep_spool`. So a failing component loses nothing before its tick; if the
 master process itself is killed, the writer still converts what is on disk,
-and `recover` (`cosim recover RUN_DIR`) rebuilds every CSV from the spools.
+and `cosim.results.recover` (`cosim recover RUN_DIR`) rebuilds every CSV from the spools.
+
+A run folder that cannot be written (disk full, read-only, removed mid-run)
+raises one `RunFolderError` naming the folder, the reason and the tick; the
+recorder then stops writing and keeps its spools for `cosim recover`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import fnmatch
 import json
-import math
 import operator
 import os
 import struct
@@ -37,9 +41,10 @@ from typing import Any
 
 import numpy as np
 
-from cosim.results.csv_writer import (HEADER_SUFFIX, SPOOL_SUFFIX, SpoolError, SpoolHeader,
-                              read_header, rebuild_csv, write_header)
-from cosim.errors import UserError
+from cosim.results.csv_writer import (SPOOL_SUFFIX, SpoolHeader,
+                              rebuild_csv, write_header)
+from cosim.errors import RunFolderError
+from cosim.results.jsonfile import write_json, write_json_in_place  # noqa: F401 - re-exported
 
 SIGNALS_FILE = "signals.csv"
 ARRAYS_DIR = "arrays"
@@ -128,10 +133,17 @@ class Recorder:
         self._writer: subprocess.Popen[bytes] | None = None
         self._writer_tried = False
         self._closed = False
+        self.failed: RunFolderError | None = None  # the folder could not be written
         self._last_flush = time.monotonic()
 
     def begin(self, master: Any) -> None:
         """Choose the columns from the master's layout; write the CSV and spool headers."""
+        try:
+            self._begin(master)
+        except OSError as exc:
+            raise self._failure(exc, 0) from None
+
+    def _begin(self, master: Any) -> None:
         self.out_dir.mkdir(parents=True, exist_ok=True)
         layout = master.layout
         chosen = [(n, i) for n, i in layout.scalar_columns()
@@ -179,11 +191,30 @@ class Recorder:
                 self._start_writer()
 
     def flush(self) -> None:
-        """Write the queued complete rows to the spools (the OS has them from here on)."""
-        for table in self._tables:
-            if table.pending and table.fd >= 0:
-                table.write_pending()
+        """Write the queued complete rows to the spools (the OS has them from here on).
+
+        Raises:
+            RunFolderError when the folder cannot be written or was removed.
+        """
+        try:
+            for table in self._tables:
+                if table.pending and table.fd >= 0:
+                    table.write_pending()
+            if self._tables and os.fstat(self._signals.fd).st_nlink == 0:
+                raise RunFolderError(self.out_dir, "the folder or its spool was removed",
+                                     self.rows - 1)
+        except (OSError, RunFolderError) as exc:
+            raise self._failure(exc, self.rows - 1) from None
         self._last_flush = time.monotonic()
+
+    def _failure(self, exc: OSError | RunFolderError, tick: int) -> RunFolderError:
+        """Remember the first folder failure (the recorder writes nothing more) and return it."""
+        if self.failed is None:
+            self.failed = exc if isinstance(exc, RunFolderError) else \
+                RunFolderError(self.out_dir, exc, tick)
+        for table in self._tables:
+            table.pending.clear()
+        return self.failed
 
     def close(self) -> None:
         """Complete every CSV, then remove the spools unless kept (safe to call twice).
@@ -195,6 +226,17 @@ class Recorder:
         if self._closed:
             return
         self._closed = True
+        if self.failed is None:
+            try:
+                self._complete()
+                return
+            except OSError as exc:
+                self._failure(exc, self.rows - 1)
+        self._abandon()
+        raise self.failed  # type: ignore[misc]
+
+    def _complete(self) -> None:
+        """close() of a folder that can be written: complete the CSV, remove the spools."""
         for table in self._tables:
             table.close()
         if self._writer is not None:
@@ -208,6 +250,19 @@ class Recorder:
         if not self.keep_spool:
             for table in self._tables:
                 table.remove_spool()
+
+    def _abandon(self) -> None:
+        """After a folder failure: close the spools as they are (kept for `cosim recover`)
+        and stop the writer process."""
+        for table in self._tables:
+            if table.fd >= 0:
+                with contextlib.suppress(OSError):
+                    os.close(table.fd)
+                table.fd = -1
+        if self._writer is not None and self._writer.poll() is None:
+            self._writer.kill()
+        if self._writer is not None:
+            self._writer.communicate()
 
     def _start_writer(self) -> None:
         """Start the CSV writer process on the spools (the CSV is built at close if it fails)."""
@@ -265,37 +320,6 @@ def _wait_while_progressing(process: subprocess.Popen[bytes], outputs: list[Path
                 return False
 
 
-def recover(run_dir: str | Path, keep_spool: bool = False) -> list[tuple[Path, int, int]]:
-    """Rebuild a run folder's CSV files from its spools (after the master was killed).
-
-    Args:
-        run_dir: the run folder.
-        keep_spool: keep the spools after the CSV files are written.
-    Returns:
-        (CSV path, rows written, bytes of a partial last row ignored) per table.
-    Raises:
-        UserError when the folder holds no spool or a spool cannot be read.
-    """
-    run_dir = Path(run_dir)
-    if not run_dir.is_dir():
-        raise UserError(f"{run_dir}: not a folder")
-    paths = sorted(run_dir.glob(f"*{HEADER_SUFFIX}")) + sorted(
-        (run_dir / ARRAYS_DIR).glob(f"*{HEADER_SUFFIX}"))
-    if not paths:
-        raise UserError(f"{run_dir}: no recording spool (*{SPOOL_SUFFIX} with its "
-                        f"*{HEADER_SUFFIX} header) to recover from")
-    try:
-        headers = [read_header(p) for p in paths]
-        done = [(h.csv_path, *rebuild_csv(h)) for h in headers]
-    except SpoolError as exc:
-        raise UserError(str(exc)) from None
-    if not keep_spool:
-        for header in headers:
-            header.spool_path.unlink(missing_ok=True)
-            header.path.unlink(missing_ok=True)
-    return done
-
-
 def read_signals(path: str | Path) -> tuple[list[str], np.ndarray]:
     """Read a signals.csv (or an arrays/ file) written by the recorder.
 
@@ -308,31 +332,3 @@ def read_signals(path: str | Path) -> tuple[list[str], np.ndarray]:
         names = handle.readline().rstrip("\n").split(",")
         rows = [[float(v) for v in line.rstrip("\n").split(",")] for line in handle if line.strip()]
     return names, np.array(rows, dtype=np.float64).reshape(len(rows), len(names))
-
-
-def write_json(path: str | Path, data: Any) -> None:
-    """Write JSON atomically (temporary file, then rename); non-finite floats become null.
-
-    Args:
-        path: destination file.
-        data: JSON-serializable data (dicts, lists, str, numbers, bools, None).
-    """
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w", encoding="utf-8") as handle:
-        json.dump(_finite(data), handle, indent=2, sort_keys=False)
-        handle.write("\n")
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(tmp, path)
-
-
-def _finite(data: Any) -> Any:
-    """Replace NaN/inf floats by None so the JSON stays standard."""
-    if isinstance(data, float):
-        return data if math.isfinite(data) else None
-    if isinstance(data, dict):
-        return {str(k): _finite(v) for k, v in data.items()}
-    if isinstance(data, (list, tuple)):
-        return [_finite(v) for v in data]
-    return data

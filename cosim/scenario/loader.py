@@ -146,6 +146,9 @@ def _located(loc: Sequence[str | int], message: str, lines: LineMap) -> Problem:
     return Problem(format_path(loc), lines.line_of(loc), message)
 
 
+#: the discriminator tags pydantic puts in an error's location (not keys of the document)
+UNION_TAGS = frozenset({"<fmu>", "<python>", *(f"<{kind}>" for kind in SOURCE_MODELS)})
+
 PATTERN_HINTS = {
     "python": "'package.module:Class'",
     "from": "'component' or 'component.port'",
@@ -156,13 +159,12 @@ PATTERN_HINTS = {
 def _problem_of(error: Any, lines: LineMap) -> Problem:
     """Turn one pydantic error into a located Problem that shows the offending value."""
     raw_loc = tuple(error["loc"])
-    loc = tuple(k for k in raw_loc if not (isinstance(k, str) and k.startswith("<")))
-    loc = tuple(k for k in loc if k != "[key]")
+    loc = tuple(k for k in raw_loc if k not in UNION_TAGS and k != "[key]")
     value = error.get("input")
     message = error["msg"].removeprefix("Value error, ")
     if error["type"] == "missing":
         message = f"field {loc[-1]!r} is required" if loc else "a field is required"
-    elif error["type"] == "extra_forbidden":
+    elif error["type"] == "extra_forbidden" and loc:
         message = f"unknown field {loc[-1]!r}" + (_other_kind_hint(raw_loc)
                                                   or _suggestion(loc))
     elif error["type"] == SOURCE_KIND_ERROR and isinstance(value, dict):
@@ -198,7 +200,7 @@ def _other_kind_hint(raw_loc: tuple[Any, ...]) -> str:
     A gust's `amplitude` written under `kind: step` is not a spelling mistake, so a
     "did you mean" would mislead; "" when `raw_loc` is not inside a source of a known kind.
     """
-    tags = [k for k in raw_loc[:-1] if isinstance(k, str) and k.startswith("<")]
+    tags = [k for k in raw_loc[:-1] if k in UNION_TAGS]
     kind = tags[-1][1:-1] if tags else None
     name = raw_loc[-1] if raw_loc else None
     if kind not in SOURCE_MODELS or not isinstance(name, str):

@@ -138,7 +138,7 @@ class Connection(BaseModel):
                               serialize_by_alias=True, strict=True)
     src: str = Field(alias="from", pattern=ENDPOINT)
     dst: str = Field(alias="to", pattern=ENDPOINT)
-    delay: int = Field(0, ge=0)
+    delay: int = Field(0, ge=0, le=1)  # a feedback edge needs one tick; the master takes no more
 
     @model_validator(mode="before")
     @classmethod

@@ -10,8 +10,6 @@ text of a component's exception, shared with the Zenoh runner.
 from __future__ import annotations
 
 import importlib
-import inspect
-import re
 from collections.abc import Mapping
 
 from cosim.component import Component, ComponentError, Port, Value, ports_by_name
@@ -50,19 +48,16 @@ def import_component_class(class_path: str, component: str) -> type[Component]:
     return cls
 
 
-_LEADING_NAME = re.compile(r"(?:parameter )?([A-Za-z_]\w*)")
-
-
 def _problem_of(launch: PythonComponentLaunch, exc: Exception) -> ParameterProblem | None:
     """The parameter a constructor's error message starts with ("ke[0] must be > 0",
     "parameter road.radius: ..."), if any; the problem keeps the field path it names."""
-    text = describe_exception(exc)
-    match = _LEADING_NAME.match(str(exc))
-    if match is None or match.group(1) not in launch.parameters:
-        return None
-    if isinstance(exc, ComponentError):
-        text = str(exc)[match.start(1):]
-    return ParameterProblem(launch.name, match.group(1), text)
+    message = str(exc)
+    text = message.removeprefix("parameter ")
+    for name in sorted(map(str, launch.parameters), key=len, reverse=True):
+        if text.startswith(name) and text[len(name):len(name) + 1] in ("", ":", ".", "[", " "):
+            problem = text if isinstance(exc, ComponentError) else describe_exception(exc)
+            return ParameterProblem(launch.name, name, problem)
+    return None
 
 
 def construct_component(launch: PythonComponentLaunch) -> Component:

@@ -22,7 +22,8 @@ from cosim.transport.inproc import InprocComponent, PythonComponentLaunch
 from cosim.engine.master import Master
 from cosim.results.csv_writer import RowFormatter, format_rows
 from cosim.errors import UserError
-from cosim.results.recorder import Recorder, read_signals, recover, selected, write_json
+from cosim.results.recorder import Recorder, read_signals, selected, write_json
+from cosim.results.recover import recover
 from tests.helpers.paths import REPO_ROOT
 
 

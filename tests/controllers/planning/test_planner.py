@@ -274,7 +274,7 @@ def test_planner_is_deterministic():
      r"manoeuvre.obstacles\[0\]: expected keys s, lane, length, width"),
     ({"manoeuvre": {"type": "lane_change", "at": 10, "to_lane": 7}}, "manoeuvre.to_lane"),
     ({"laps": 0}, "laps: expected an integer >= 1"),
-    ({"cones": [[1, 2]]}, r"unknown parameters \['cones'\] \(known: road, lane, manoeuvre,"),
+    ({"cones": [[1, 2]]}, r"cones: unknown parameters \['cones'\] \(known: road, lane, manoeuvre,"),
     ({"stop_at_end": "yes"}, "stop_at_end / start_from_rest: expected true or false"),
 ])
 def test_bad_parameters_give_one_clear_message(params, message):

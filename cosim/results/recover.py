@@ -1,0 +1,98 @@
+"""`cosim recover`: rebuild a run folder from its recording spools.
+
+A run whose master was killed, or whose folder could not be written (a full
+disk), keeps the binary spools of the recorder (`cosim.results.recorder`).
+`recover` turns every spool into its CSV and rewrites the manifest: status
+"recovered", the ticks on disk and the time of the last one, so that the
+folder no longer claims to be "running".
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import struct
+from pathlib import Path
+
+from cosim.errors import UserError
+from cosim.results.csv_writer import (HEADER_SUFFIX, SPOOL_SUFFIX, SpoolError, SpoolHeader,
+                                      read_header, rebuild_csv)
+from cosim.results.recorder import ARRAYS_DIR, SIGNALS_FILE, RunFolderError, write_json
+
+MANIFEST_FILE = "manifest.json"
+
+
+def recover(run_dir: str | Path, keep_spool: bool = False) -> list[tuple[Path, int, int]]:
+    """Rebuild a run folder's CSV files from its spools and mark its manifest recovered.
+
+    Args:
+        run_dir: the run folder.
+        keep_spool: keep the spools after the CSV files are written.
+    Returns:
+        (CSV path, rows written, bytes of a partial last row ignored) per table.
+    Raises:
+        UserError when the folder holds no spool, a spool cannot be read, or the
+        folder cannot be written (RunFolderError: free space, then recover again).
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise UserError(f"{run_dir}: not a folder")
+    paths = sorted(run_dir.glob(f"*{HEADER_SUFFIX}")) + sorted(
+        (run_dir / ARRAYS_DIR).glob(f"*{HEADER_SUFFIX}"))
+    if not paths:
+        raise UserError(f"{run_dir}: no recording spool (*{SPOOL_SUFFIX} with its "
+                        f"*{HEADER_SUFFIX} header) to recover from")
+    try:
+        headers = [read_header(p) for p in paths]
+        done = [(h.csv_path, *rebuild_csv(h)) for h in headers]
+        signals = next((h for h in headers if h.csv == SIGNALS_FILE), None)
+        if signals is not None:
+            _mark_recovered(run_dir / MANIFEST_FILE, signals)
+    except SpoolError as exc:
+        raise UserError(str(exc)) from None
+    except OSError as exc:
+        raise RunFolderError(run_dir, f"{exc.strerror or exc} (free space or fix the "
+                                      "permissions, then run cosim recover again)") from None
+    if not keep_spool:
+        for header in headers:
+            header.spool_path.unlink(missing_ok=True)
+            header.path.unlink(missing_ok=True)
+    return done
+
+
+def _mark_recovered(manifest_path: Path, signals: SpoolHeader) -> None:
+    """Rewrite the manifest (when there is one) with status "recovered", the ticks on
+    disk and the last tick's time, read from the signals spool."""
+    try:
+        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return  # no readable manifest: the CSV files are what there is to recover
+    if not isinstance(manifest, dict):
+        return
+    rows, last_time = _last_row_time(signals)
+    previous = manifest.get("status")
+    manifest.update({
+        "status": "recovered",
+        "recovered_from_status": previous,
+        "error": manifest.get("error") or f"the run ended without finishing (status {previous!r})",
+        "ticks": max(rows - 1, 0),
+        "last_time_s": last_time,
+        "sim_time_s": None if last_time is None else last_time - manifest.get(
+            "scenario", {}).get("start_time", 0.0),
+        "recovered_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(
+            timespec="seconds"),
+    })
+    write_json(manifest_path, manifest)
+
+
+def _last_row_time(header: SpoolHeader) -> tuple[int, float | None]:
+    """(complete rows in the spool, time of the last one or None)."""
+    size = header.row_bytes
+    with open(header.spool_path, "rb") as spool:
+        rows = spool.seek(0, 2) // size
+        if rows == 0:
+            return 0, None
+        spool.seek((rows - 1) * size)
+        raw = spool.read(8)
+    order = "<" if header.byteorder == "little" else ">"
+    return rows, struct.unpack(f"{order}d", raw)[0]
