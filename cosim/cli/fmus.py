@@ -28,12 +28,15 @@ def build_fmus(out: Optional[Path] = typer.Option(
     from cosim.resources import is_checkout
 
     try:
+        if out is not None:  # before compiling: an unwritable --out fails at once
+            out.mkdir(parents=True, exist_ok=True)
         paths = build_all(out) if out is not None or is_checkout() else build_all_cached()
     except UserError as error:
         raise user_error_exit(error) from None
     except OSError as error:  # --out in a folder that cannot be made or written
         raise user_error_exit(UserError(
-            f"cannot write the FMUs to {error.filename or out}: {error.strerror or error}")) from None
+            f"--out {out}: cannot write the FMUs there ({error.filename}: "
+            f"{error.strerror or error})")) from None
     for path in paths:
         print(path)
 

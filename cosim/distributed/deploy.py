@@ -37,6 +37,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from cosim.errors import UserError
+from cosim.scenario.yaml_lines import read_yaml_file
 
 _PROTOCOLS = ("tcp", "tls", "udp", "quic", "unixsock-stream")
 
@@ -94,10 +95,11 @@ def load_deploy(path: str | Path) -> DeploySettings:
         UserError naming the file and each bad field.
     """
     path = Path(path)
-    try:
-        document = yaml.safe_load(path.read_text()) or {}
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise UserError(f"{path}: cannot read deployment file: {exc}") from None
+    try:  # bounded and checked like a scenario file (size, UTF-8, NUL, nesting)
+        document = yaml.safe_load(read_yaml_file(path)) or {}
+    except (OSError, yaml.YAMLError, RecursionError) as exc:
+        reason = getattr(exc, "problem", None) or exc
+        raise UserError(f"{path}: cannot read deployment file: {reason}") from None
     if not isinstance(document, dict):
         raise UserError(f"{path}: a deployment file is a mapping (listen, connect, tls, "
                         f"access_control), got {type(document).__name__}")

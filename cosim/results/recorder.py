@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from cosim.results.csv_writer import (SPOOL_SUFFIX, SpoolHeader,
+from cosim.results.csv_writer import (SPOOL_SUFFIX, SpoolError, SpoolHeader,
                               rebuild_csv, write_header)
 from cosim.errors import RunFolderError
 from cosim.results.jsonfile import write_json, write_json_in_place  # noqa: F401 - re-exported
@@ -201,19 +201,23 @@ class Recorder:
                 if table.pending and table.fd >= 0:
                     table.write_pending()
             if self._tables and os.fstat(self._signals.fd).st_nlink == 0:
-                raise RunFolderError(self.out_dir, "the folder or its spool was removed",
-                                     self.rows - 1)
+                raise RunFolderError(self.out_dir, "the spool was removed", self.rows - 1)
         except (OSError, RunFolderError) as exc:
             raise self._failure(exc, self.rows - 1) from None
         self._last_flush = time.monotonic()
 
-    def _failure(self, exc: OSError | RunFolderError, tick: int) -> RunFolderError:
+    def _failure(self, exc: Exception, tick: int) -> RunFolderError:
         """Remember the first folder failure (the recorder writes nothing more) and return it."""
         if self.failed is None:
-            self.failed = exc if isinstance(exc, RunFolderError) else \
-                RunFolderError(self.out_dir, exc, tick)
+            if not self.out_dir.is_dir():
+                self.failed = RunFolderError(self.out_dir, "the folder was removed", tick)
+            elif isinstance(exc, RunFolderError):
+                self.failed = exc
+            else:
+                self.failed = RunFolderError(self.out_dir, exc if isinstance(exc, OSError)
+                                             else str(exc), tick)
         for table in self._tables:
-            table.pending.clear()
+            table.pending = bytearray()  # a new buffer: the old one may still be exported
         return self.failed
 
     def close(self) -> None:
@@ -230,7 +234,7 @@ class Recorder:
             try:
                 self._complete()
                 return
-            except OSError as exc:
+            except (OSError, SpoolError) as exc:  # SpoolError: the spool went with its folder
                 self._failure(exc, self.rows - 1)
         self._abandon()
         raise self.failed  # type: ignore[misc]

@@ -124,7 +124,9 @@ def _validate(data: dict, file: Path | None, lines: LineMap,
     try:
         scenario = Scenario.model_validate(data, context={"deferred_checks": True})
     except ValidationError as exc:
-        problems += [_problem_of(err, lines) for err in exc.errors()]
+        unreadable = {p.path for p in problems}  # a value YAML could not build is None now
+        problems += [p for p in (_problem_of(err, lines) for err in exc.errors())
+                     if p.path not in unreadable]
     seen = {p.path for p in problems}
     for loc, message in semantic_problems(data, file.parent if file is not None else Path.cwd()):
         problem = _located(loc, message, lines)

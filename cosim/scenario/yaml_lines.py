@@ -154,7 +154,7 @@ def read_yaml_file(path: str | Path) -> str:
         raise YamlLimitError(f"cannot read the file: {exc.strerror or exc}", None) from None
     if len(raw) > MAX_FILE_BYTES:
         raise YamlLimitError(f"the file is larger than {MAX_FILE_BYTES // 2**20} MB, "
-                             "the limit of a scenario file", None)
+                             "the limit of a scenario or deployment file", None)
     if b"\0" in raw:
         line = raw.count(b"\n", 0, raw.index(b"\0")) + 1
         raise YamlLimitError("the file holds a NUL byte (not a text file?)", line)

@@ -160,12 +160,12 @@ def test_fmu_components_and_paths(lane_change: Path) -> None:
 
 def test_overrides_are_yaml_values_at_dotted_paths(lane_change: Path) -> None:
     s = load_scenario(lane_change, [
-        "components.controller.parameters.ke=2.0", "duration=5", "connections.3.delay=2",
+        "components.controller.parameters.ke=2.0", "duration=5", "connections.3.delay=1",
         "components.planner.parameters.profile.speeds=[5, 10]", "description=now 1e-3",
         "sources.side_wind.amplitude=1e-3", "record.include=[vehicle.*]"])
     assert s.components["controller"].parameters == {"ls": 5.0, "gains": [1, 2], "ke": 2.0}
     assert s.total_ticks == 500
-    assert s.connections[3].delay == 2
+    assert s.connections[3].delay == 1
     assert s.components["planner"].parameters == {"profile": {"speeds": [5, 10]}}
     assert s.description == "now 1e-3"
     assert s.sources["side_wind"].amplitude == 0.001
