@@ -10,18 +10,8 @@ from pathlib import Path
 import pytest
 
 from cosim.cli.app import main
+from tests.cli.test_parameter_errors import CONTROLLER
 from tests.helpers.components import GOOD
-
-CONTROLLER = """\
-name: params
-duration: 0.1
-tick: 0.01
-components:
-  controller:
-    python: controllers.backstepping:BacksteppingController
-    parameters:
-      {bad}
-"""
 
 PLANNER = """\
 name: planner
@@ -63,7 +53,7 @@ def _err(capsys) -> str:
 def test_parameter_types_are_checked_at_their_line(tmp_path, capsys, bad, expected):
     path = _write(tmp_path, CONTROLLER.format(bad=bad))
     assert main(["validate", str(path)]) == 2
-    assert _err(capsys) == f"error: {path}:8: {expected}"
+    assert _err(capsys) == f"error: {path}:9: {expected}"
 
 
 @pytest.mark.parametrize("length, radius, line, expected", [
