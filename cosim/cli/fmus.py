@@ -27,11 +27,14 @@ def build_fmus(out: Optional[Path] = typer.Option(
     from cosim.fmu.cache import build_all_cached
     from cosim.resources import is_checkout
 
+    created = out is not None and not out.exists()
     try:
         if out is not None:  # before compiling: an unwritable --out fails at once
             out.mkdir(parents=True, exist_ok=True)
         paths = build_all(out) if out is not None or is_checkout() else build_all_cached()
     except UserError as error:
+        if created and out is not None and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()  # nothing was built: leave no empty folder behind
         raise user_error_exit(error) from None
     except OSError as error:  # --out in a folder that cannot be made or written
         raise user_error_exit(UserError(

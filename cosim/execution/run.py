@@ -163,8 +163,8 @@ def check_run_options(transport: str, realtime: float | None) -> None:
         realtime: the `--realtime` factor, or None.
     """
     if transport not in TRANSPORTS:
-        raise UserError(f"--transport {transport!r}: unknown transport "
-                        f"(choose from {', '.join(TRANSPORTS)})")
+        raise UserError(f"unknown transport {transport!r} "
+                        f"(--transport: choose from {', '.join(TRANSPORTS)})")
     if realtime is not None and not MIN_REALTIME <= realtime < float("inf"):
         raise UserError(f"--realtime factor must be a number from {MIN_REALTIME:g} "
                         f"(1000 times slower than real time) up, got {realtime!r}")

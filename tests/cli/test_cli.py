@@ -133,7 +133,7 @@ def test_bare_realtime_means_factor_one():
 
 def test_unknown_transport_exit_2(good, capsys):
     assert main(["run", str(good), "--transport", "carrier-pigeon"]) == 2
-    assert "--transport 'carrier-pigeon': unknown transport" in capsys.readouterr().err
+    assert "unknown transport 'carrier-pigeon' (--transport: choose" in capsys.readouterr().err
 
 
 def test_schema_is_json(capsys):
