@@ -202,8 +202,8 @@ def check_samples(scenario_path: Path, samples: Sequence[Sequence[str]],
                        + str(exc).replace("\n", "; "))
     if bad:
         more = f"\n... and {len(bad) - shown} more" if len(bad) > shown else ""
-        raise UserError(f"sweep refused before its first run: {len(bad)} of {len(samples)} "
-                        "samples are invalid:\n" + "\n".join(bad[:shown]) + more)
+        raise UserError(f"{scenario_path}: sweep refused before its first run: {len(bad)} "
+                        f"of {len(samples)} samples are invalid:\n" + "\n".join(bad[:shown]) + more)
 
 
 def _run_task(run_fn: RunFunction, scenario_path: Path, transport: str, roots: tuple[str, ...],

@@ -123,7 +123,7 @@ def test_sweep_refuses_invalid_samples_before_running_any(tmp_path, capsys):
     assert main(["sweep", str(path), "--vary", "components.gain.parameters.k=-1:1", "--vary",
                  "duration=0.1:0.3", "--samples", "3", "--out", str(tmp_path / "sw")]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: sweep refused before its first run: 3 of 3 samples are "
+    assert err.startswith(f"error: {path}: sweep refused before its first run: 3 of 3 samples are "
                           "invalid:\nsample 0 (components.gain.parameters.k=")
     assert "is not a whole number of ticks" in err and "Traceback" not in err
     assert not (tmp_path / "sw" / "samples" / "sample_0000").exists()
