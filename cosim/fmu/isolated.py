@@ -32,6 +32,7 @@ import signal
 import struct
 import subprocess
 import sys
+import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -43,6 +44,7 @@ LENGTH = struct.Struct("=I")
 STEP = struct.Struct("=qd")
 READY_TIMEOUT_S = 60.0  # process start-up (imports, unzipping): not an FMI call
 STOP_WAIT_S = 2.0
+POLL_SLICE_MS = 100
 
 
 class IsolatedFmu:
@@ -134,7 +136,7 @@ class IsolatedFmu:
     def _receive(self, call: str, tick: int | None, t: float, timeout_s: float,
                  raw: bool = False) -> tuple[bytes, bytes]:
         """The next frame; a failure, a death or a timeout of the process raises ComponentFailure."""
-        if not self._poll.poll(timeout_s * 1000.0):
+        if not self._wait_readable(timeout_s):
             self._end_process()
             raise ComponentFailure(self.name, tick, t, f"no return from its {call} within the "
                                    f"deadline of {timeout_s:g} s (its isolated process was "
@@ -147,11 +149,22 @@ class IsolatedFmu:
         if kind == b"E":
             error = json.loads(payload)
             raise ComponentFailure(self.name, error["tick"], error["time"], error["cause"],
-                                   {"kind": "fmi"})
+                                   error.get("details"))
         if raw or kind in (b"O", b"T", b"R"):
             return kind, payload
         raise ComponentFailure(self.name, tick, t, f"unexpected reply {kind!r} from its "
                                f"isolated process")
+
+    def _wait_readable(self, timeout_s: float) -> bool:
+        """Whether a reply came within `timeout_s`; waits in short slices, so that a
+        Ctrl-C received by another thread (Zenoh's) is raised here without delay."""
+        if self._poll.poll(0.0) or self._poll.poll(POLL_SLICE_MS):
+            return True
+        end = time.monotonic() + timeout_s
+        while (left := end - time.monotonic()) > 0:
+            if self._poll.poll(min(left * 1000.0, POLL_SLICE_MS)):
+                return True
+        return False
 
     def _died(self, call: str, tick: int | None, t: float) -> ComponentFailure:
         code = self.process.wait()
@@ -259,7 +272,8 @@ def _loop(fmu: Any, rx: int, tx: int) -> int:
             error = exc if isinstance(exc, ComponentFailure) else None
             _send(tx, b"E", json.dumps({"tick": error.tick if error else tick,
                                         "time": error.time if error else t,
-                                        "cause": error.cause if error else repr(exc)}).encode())
+                                        "cause": error.cause if error else repr(exc),
+                                        "details": error.details if error else {}}).encode())
             continue
         os.write(tx, reply.pack(reply.size - 4, b"O", *[out[n] for n in outs]))
     return 0
