@@ -345,13 +345,7 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
                        metrics, pacer.stats() if pacer else None,
                        clock.marks.get("tick0"), clock.as_dict(), live,
                        _stopped_by(master.stop_request))
-    final = finish_manifest(manifest, result)
-    if result.stopped_by is not None:
-        final["stopped_by"] = result.stopped_by
-    if getattr(failure, "details", None):
-        final["cause"] = {**failure.details, "component": failure.component,
-                          "tick": failure.tick, "time": failure.time}
-    write_json(out / "manifest.json", final)
+    write_json(out / "manifest.json", finish_manifest(manifest, result, failure))
     if options.page is not None:
         options.page.done()
     if failure is not None and not isinstance(failure, (UserError, KeyboardInterrupt)):
@@ -393,11 +387,9 @@ def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
 
 
 def _stopped_by(request: Any) -> dict[str, Any] | None:
-    """The manifest's "stopped_by" for a component's request to end the run, or None."""
-    if request is None:
-        return None
-    return {"component": request.component, "tick": request.tick, "time": request.time,
-            "reason": request.reason}
+    """RunResult.stopped_by for a component's request to end the run (or None)."""
+    return None if request is None else {"component": request.component, "tick": request.tick,
+                                         "time": request.time, "reason": request.reason}
 
 
 def _failure_text(exc: BaseException) -> str:
