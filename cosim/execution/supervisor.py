@@ -161,15 +161,21 @@ class Supervisor:
             when, what = self.interrupted
             if self.since <= when and now - when >= INTERRUPT_GRACE_S:
                 return {"kind": "interrupted", "what": what, "call": call}
-        deadline = self._deadline(call[0])
+        deadline = self._deadline(call[0], call[1])
         if deadline is not None and now - self.since > deadline:
             return {"kind": "deadline", "deadline_s": deadline, "call": call}
         return None
 
-    def _deadline(self, index: int) -> float | None:
+    def _deadline(self, index: int, call: int) -> float | None:
+        """The deadline of a call; None for the stop of a component in another process
+        (its host ends it with its own grace periods and kills)."""
+        from cosim.engine.crumb import CALL_STOP
+
         table = self._load_table()
-        deadlines = table.get("deadlines_s", [])
-        return deadlines[index] if index < len(deadlines) else None
+        deadlines, local = table.get("deadlines_s", []), table.get("local", [])
+        if index >= len(deadlines) or (call == CALL_STOP and not local[index]):
+            return None
+        return deadlines[index]
 
     def _load_table(self) -> dict[str, Any]:
         """The manifest's "supervision" entry (step order, deadlines), read once it is there."""
@@ -235,7 +241,8 @@ def supervision_entry(order: list[str], local: set[str],
         deadlines: name -> deadline in seconds.
     """
     return {"deadlines_s": [deadlines[n] + (0.0 if n in local else REMOTE_MARGIN_S)
-                            for n in order]}
+                            for n in order],
+            "local": [n in local for n in order]}
 
 
 def _decode(word: int) -> tuple[int, int, int] | None:
