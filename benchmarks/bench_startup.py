@@ -14,6 +14,8 @@ sandbox sets PYTHONDONTWRITEBYTECODE=1). DESIGN.md target: under 1 s over Zenoh.
     .venv/bin/python benchmarks/bench_startup.py [--scenario scenarios/lane_change.yaml]
         [--repeat 5] [--transports zenoh,inproc,zenoh-noprestart] [--no-bytecode-cache]
 
+"zenoh-nosupervise" runs `cosim run --no-supervise` (no supervisor process
+forked: its cost at start-up is the difference to "zenoh").
 "zenoh-noprestart" runs `cosim run --no-prestart` (component processes started
 after the scenario is loaded instead of while it loads), for comparison.
 """
@@ -46,7 +48,8 @@ def cosim_command() -> list[str]:
 def run_once(scenario: Path, transport: str, out: Path, duration: float,
              env: dict[str, str]) -> dict:
     """One `cosim run`; returns its manifest (raises if the run failed)."""
-    extra = ["--no-prestart"] if transport.endswith("-noprestart") else []
+    variants = {"noprestart": "--no-prestart", "nosupervise": "--no-supervise"}
+    extra = [variants[v] for v in transport.split("-")[1:]]
     cmd = [*cosim_command(), "run", str(scenario), "--out", str(out), "--no-figures",
            "--transport", transport.split("-")[0], "--set", f"duration={duration!r}", *extra]
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env)

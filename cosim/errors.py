@@ -100,13 +100,17 @@ class ComponentFailure(UserError):
         tick: the master tick at which it failed (None: during initialization).
         time: the simulation time of that tick, in seconds.
         cause: what went wrong, e.g. "output 'delta' is NaN".
+        details: machine-readable facts for the manifest's "cause", e.g.
+            {"kind": "signal", "signal": "SIGSEGV"} for a process that died.
     """
 
-    def __init__(self, component: str, tick: int | None, time: float, cause: str):
+    def __init__(self, component: str, tick: int | None, time: float, cause: str,
+                 details: dict | None = None):
         self.component = component
         self.tick = tick
         self.time = time
         self.cause = cause
+        self.details = dict(details or {})
         when = "during initialization" if tick is None else f"at tick {tick}"
         super().__init__(
             f"component {component!r} failed {when} (t={time:.10g} s): {cause}"
@@ -126,3 +130,25 @@ class RunFolderError(UserError):
         text = reason if isinstance(reason, str) else (reason.strerror or str(reason))
         super().__init__(f"cannot write the run folder {folder}: {text}"
                          + (f" at tick {tick}" if tick is not None else ""))
+
+
+class StopRequested(Exception):
+    """A component asks to end the run normally after its step (an FMU's termination request).
+
+    Raised by a host's `step` with the outputs of the step that asked: the
+    master records that tick, then ends the run with status ok and
+    `stopped_by` naming the component and the time.
+
+    Args:
+        component: the component's name in the scenario.
+        tick: the master tick whose step asked to stop.
+        time: the simulation time of that tick, in seconds.
+        outputs: the component's outputs of that step.
+        reason: why, in the component's words.
+    """
+
+    def __init__(self, component: str, tick: int, time: float, outputs: dict, reason: str):
+        self.component, self.tick, self.time = component, tick, time
+        self.outputs, self.reason = outputs, reason
+        super().__init__(f"component {component!r} asked to stop the run at tick {tick} "
+                         f"(t={time:.10g} s): {reason}")

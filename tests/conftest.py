@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers.fmus import build_lag
+from tests.helpers.fmus import FaultyFmus, build_lag
 
 
 @pytest.fixture(scope="session")
@@ -19,3 +19,10 @@ def fmu_dir(tmp_path_factory) -> Path:
 def lag_fmus(tmp_path_factory) -> dict[int, Path]:
     """tests/fmus/Lag built as FMI 2.0 and 3.0 FMUs (version -> path)."""
     return build_lag(tmp_path_factory.mktemp("lag"))
+
+
+@pytest.fixture(scope="session")
+def faulty_fmus(tmp_path_factory) -> FaultyFmus:
+    """tests/fmus/Faulty and FaultyOnce as FMI 2.0 / 3.0 FMUs, built on first use:
+    faulty_fmus["Faulty", 2] is a path."""
+    return FaultyFmus(tmp_path_factory.mktemp("faulty"))

@@ -25,6 +25,13 @@ def _is_cosim_program(module_name: str) -> bool:
     return program in ("cosim", "app.py") or module_name == "__main__"
 
 
+def is_cosim_command() -> bool:
+    """True when this process is the `cosim` command itself (not a test calling `main`)."""
+    main = sys.modules.get("__main__")
+    spec = getattr(main, "__spec__", None)
+    return _is_cosim_program("") or getattr(spec, "name", None) == "cosim.cli.app"
+
+
 def quiet_until_started(module_name: str) -> None:
     """Install the one-line Ctrl-C handler when this process is the `cosim` command.
 

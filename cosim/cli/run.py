@@ -56,7 +56,9 @@ def run(
     listen: list[str] = typer.Option([], "--listen", help="master endpoint the workers reach"),
     connect: list[str] = typer.Option([], "--connect", help="worker or router endpoint, repeatable"),
     deploy: Optional[Path] = typer.Option(None, "--deploy", help="deployment settings YAML (endpoints, TLS, ACL)"),
-    deadline: float = typer.Option(10.0, "--deadline", help="per-exchange deadline of remote components, s"),
+    deadline: float = typer.Option(10.0, "--deadline",
+                                   help="deadline of a component call (FMI call, step, remote "
+                                        "exchange), s; a component's `deadline:` overrides it"),
     prestart: bool = typer.Option(True, "--prestart/--no-prestart",
                                   help="start component processes while the scenario loads"),
     mcap: bool = typer.Option(False, "--mcap", help="also write run.mcap (as record: {mcap: true})"),
@@ -69,6 +71,10 @@ def run(
     allow_large: bool = typer.Option(False, "--allow-large",
                                      help="no limit on ticks or CSV size (10 GB by default)"),
     force: bool = typer.Option(False, "--force", help="let --out replace an existing run folder"),
+    fmu_log: bool = typer.Option(False, "--fmu-log", help="every FMU's log messages to run.log"),
+    supervise: bool = typer.Option(True, "--supervise/--no-supervise",
+                                   help="a parent process that completes the run folder if "
+                                        "the master dies or hangs in native code"),
 ) -> None:
     """Run a scenario and write its run folder.
 
@@ -95,6 +101,12 @@ def run(
         out_dir = check_out_option(out, force)
     except UserError as error:
         raise user_error_exit(error) from None
+    if supervise and interrupts.is_cosim_command():  # not under a test's in-process CLI
+        from cosim.execution.supervisor import fork_supervisor
+
+        status = fork_supervisor()
+        if status is not None:  # the supervisor: the master has ended
+            raise typer.Exit(status)
     early = None
     try:
         if prestart and transport == "zenoh" and not (place or listen or connect or deploy):
@@ -103,7 +115,8 @@ def run(
             early = prestart_components(scenario_file)  # their start overlaps the scenario's load
         result = _load_and_run(scenario_file, set_, out_dir, (deploy, listen, connect), clock,
                                (foxglove, foxglove_host), transport=transport, realtime=realtime,
-                               place=place, deadline_s=deadline, prestart=early, limits=limits)
+                               place=place, deadline_s=deadline, prestart=early, limits=limits,
+                               fmu_log=fmu_log)
     except UserError as error:
         raise user_error_exit(error) from None
     except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
@@ -228,6 +241,10 @@ def _finish_run(result: Any, figures: bool, mcap: bool = False) -> None:
             for note in write_mcap_note(result.out_dir):
                 print(note)
     print_summary(result)  # run table, then metrics table
+    stopped = result.stopped_by
+    if stopped is not None:
+        print(f"stopped by component {stopped['component']!r} at tick {stopped['tick']} "
+              f"(t={stopped['time']:.10g} s): {stopped['reason']}")
     if result.status != "ok":
         Console(stderr=True, highlight=False, soft_wrap=True).print(
             f"[red]run failed:[/red] {escape(str(result.error))}", markup=True)

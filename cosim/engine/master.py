@@ -14,6 +14,16 @@ naming the component, the tick, the signal and the value.
 Observers (recorder, progress bar, live publisher, real-time pacer) see the
 signal store (`values` list of scalars, `arrays` numpy buffer, indexed by
 `master.layout`) after every tick; they must not modify it.
+
+Before each call of a component the master writes one 64-bit word, the
+breadcrumb (`crumb_code`: which component, which call, which tick), and 0 when
+the tick's calls are done: a plain memory write, read by a supervisor in
+another process through shared memory, which so knows what the master was
+doing if it dies or hangs inside a component's native code.
+
+A host whose `step` raises `cosim.errors.StopRequested` (an FMU asking to
+terminate) ends the run normally: its outputs are used, the tick completes
+and is observed, and `stop_request` says who asked.
 """
 
 from __future__ import annotations
@@ -26,7 +36,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from cosim.errors import ComponentFailure
+from cosim.errors import ComponentFailure, StopRequested
+from cosim.engine.crumb import CALL_START, CALL_STEP, CALL_STOP, crumb_code
 from cosim.engine.hosting import HostedComponent
 from cosim.engine.schedule import step_order
 from cosim.engine.signals import ComponentSlots, SignalLayout, build_layout
@@ -55,8 +66,10 @@ class _Plan:
     pick_outputs: Callable[[Any], tuple]  # outputs mapping -> scalar outputs in slot order
     out_start: int
     out_stop: int
+    index: int = 0  # position in step order, for the breadcrumb
 
     def __post_init__(self) -> None:
+        self.crumb_step = crumb_code(self.index, CALL_STEP)
         self.step = self.hosted.step
         self.in_names = self.slots.in_scalar_names
         self.has_array_inputs = bool(self.slots.in_arrays)
@@ -75,11 +88,14 @@ class Master:
         observers: called after every tick (see Observer).
         trace: when True, `self.trace` lists (tick, component, inputs copy)
             for every start and step, for tests.
+        crumb: a writable memoryview of int64 (format "q") whose item 0 gets
+            the breadcrumb (shared memory a supervisor reads); None: a private word.
     """
 
     def __init__(self, components: Mapping[str, HostedComponent], edges: Iterable[Any],
                  tick: float, total_ticks: int, t0: float = 0.0,
-                 observers: Sequence[Observer] = (), trace: bool = False) -> None:
+                 observers: Sequence[Observer] = (), trace: bool = False,
+                 crumb: Any = None) -> None:
         edges = list(edges)
         self.components = dict(components)
         self.tick = float(tick)
@@ -97,14 +113,16 @@ class Master:
         # copy: a new object is made each time the owner writes, never mutated
         self._frozen: dict[int, np.ndarray] = {}
         self.ticks_done = -1  # last completed tick; -1 before initialization
-        self._plans = [self._plan(name) for name in self.order]
+        self.crumb = crumb if crumb is not None else memoryview(bytearray(8)).cast("q")
+        self.stop_request: StopRequested | None = None  # a component asked to end the run
+        self._plans = [self._plan(i, name) for i, name in enumerate(self.order)]
         self._scalar_delays = self.layout.scalar_delays
         self._array_delays = self.layout.array_delays
         self._has_delays = bool(self._scalar_delays or self._array_delays)
         self._due = _due_table(self._plans)
         self._started: list[str] = []  # components whose start was called, to stop
 
-    def _plan(self, name: str) -> _Plan:
+    def _plan(self, index: int, name: str) -> _Plan:
         comp = self.components[name]
         period = int(comp.period_ticks)
         if period < 1:
@@ -113,7 +131,7 @@ class Master:
         start = slots.out_scalar_start
         return _Plan(name, comp, period, slots, picker(slots.in_scalar_index),
                      picker(slots.out_scalar_names), start,
-                     start + len(slots.out_scalar_names))
+                     start + len(slots.out_scalar_names), index)
 
     def value(self, component: str, signal: str) -> Any:
         """Current value of an output signal (float, or a copy of the array)."""
@@ -133,11 +151,16 @@ class Master:
             after_initialize: called once when tick 0 (the initialization phase)
                 is complete, e.g. to time the start-up.
         """
-        self.initialize()
-        if after_initialize is not None:
-            after_initialize()
-        for k in range(1, self.total_ticks + 1):
-            self.step_tick(k)
+        try:
+            self.initialize()
+            if after_initialize is not None:
+                after_initialize()
+            for k in range(1, self.total_ticks + 1):
+                self.step_tick(k)
+                if self.stop_request is not None:
+                    break
+        finally:
+            self.crumb[0] = 0  # out of any call: whatever follows is the caller's
 
     def initialize(self) -> None:
         """Initialization phase at t0: start every component in step order."""
@@ -149,7 +172,10 @@ class Master:
             if self.trace is not None:
                 self.trace.append((0, plan.name, _copy_inputs(inputs)))
             self._started.append(plan.name)
-            self._scatter(plan, plan.hosted.start(t0, inputs), None, t0)
+            self.crumb[0] = crumb_code(plan.index, CALL_START)
+            outputs = plan.hosted.start(t0, inputs)
+            self.crumb[0] = 0
+            self._scatter(plan, outputs, None, t0)
         self._finish_tick(0, t0)
 
     def step_tick(self, k: int) -> None:
@@ -164,13 +190,18 @@ class Master:
         due = self._due
         plans = (due[k % len(due)] if due is not None
                  else [p for p in self._plans if k % p.period == 0])
+        crumb, tick_bits = self.crumb, k << 20
         for plan in plans:
             inputs = dict(zip(plan.in_names, plan.pick_inputs(values)))
             if plan.has_array_inputs:
                 self._gather_arrays(plan, inputs)
             if self.trace is not None:
                 self.trace.append((k, plan.name, _copy_inputs(inputs)))
-            outputs = plan.step(k, t, inputs)
+            crumb[0] = tick_bits | plan.crumb_step
+            try:
+                outputs = plan.step(k, t, inputs)
+            except StopRequested as request:  # the tick completes; `run` ends after it
+                self.stop_request, outputs = request, request.outputs
             try:
                 new = list(map(float, plan.pick_outputs(outputs)))
             except Exception:  # missing name, not a mapping, not a number: diagnose
@@ -180,6 +211,7 @@ class Master:
             values[plan.out_start:plan.out_stop] = new
             if plan.has_array_outputs:
                 self._scatter_arrays(plan, outputs, k, t)
+        crumb[0] = 0
         self.ticks_done = k
         for observer in self.observers:
             observer.after_tick(k, t, values, self.arrays)
@@ -245,11 +277,14 @@ class Master:
         for plan in reversed(self._plans):
             if plan.name not in started:
                 continue
+            self.crumb[0] = crumb_code(plan.index, CALL_STOP, max(self.ticks_done, 0))
             try:
                 metrics[plan.name] = dict(plan.hosted.stop() or {})
             except Exception as exc:  # keep stopping the others
                 errors.append(str(exc) if isinstance(exc, ComponentFailure)
                               else f"component {plan.name!r}: stop failed: {exc}")
+            finally:
+                self.crumb[0] = 0
         return metrics, errors
 
 

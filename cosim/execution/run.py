@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cosim.errors import UserError
+from cosim.execution import fmu_hosting, supervisor
 from cosim.transport.launch import PythonComponentLaunch
 from cosim.execution.abort import locate_parameter_problem, start_failure_text, write_start_failure
 from cosim.execution.limits import RunLimits, check_recorded_size, check_ticks
@@ -55,6 +56,7 @@ class RunResult:
     time_to_tick0_s: float | None = None  # from the clock's origin; None: tick 0 not reached
     startup: dict[str, Any] = field(default_factory=dict)  # StartupClock marks and origin
     live: dict[str, Any] | None = None  # {"run_id", "endpoint"} of the live view (zenoh)
+    stopped_by: dict[str, Any] | None = None  # {"component", "tick", "time", "reason"}
 
     @property
     def signals(self) -> Path:
@@ -75,7 +77,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  prestart: Any = None,
                  on_folder: Callable[[Path], None] | None = None,
                  observers: Sequence[Any] = (),
-                 limits: RunLimits | None = None) -> RunResult:
+                 limits: RunLimits | None = None,
+                 fmu_log: bool = False) -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -88,7 +91,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         transport: "inproc" or "zenoh" (Python components as OS processes).
         realtime: pace to wall clock at this factor (1.0 = real time); None: as fast as possible.
         progress: draw a progress bar (on stderr).
-        deadline_s: per-tick deadline of remote components (zenoh).
+        deadline_s: the deadline of a component call (remote exchange, FMI call,
+            in-process step), unless the component sets its own `deadline:`.
         place: `--place COMPONENT=WORKER` values (override the scenario's `host:`).
         deploy: cosim.distributed.deploy.DeploySettings (endpoints, TLS, ACL), or None.
         clock: start-up clock whose marks go into the manifest (`cosim run`
@@ -104,6 +108,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         observers: more master observers (e.g. cosim.foxglove.live.FoxgloveLive),
             after the recorder; they must only read the signal store.
         limits: how large the run may be (cosim.execution.limits; default: the defaults).
+        fmu_log: every FMU's log messages go to run.log (`--fmu-log`).
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -123,26 +128,46 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         launches += _placed_fmu_launches(scenario, placement)
         out = _make_run_folder(Path(out_dir))
         run_id = prestart.run_id if prestart is not None else uuid.uuid4().hex[:12]
+        page = supervisor.current()
         try:
+            if page is not None:
+                page.announce(out)
             if on_folder is not None:
                 on_folder(out)
             remote = None
             if transport == "zenoh":  # spawned before the FMUs load: their start-ups overlap
                 remote = _spawn_remote(launches, run_id, deadline_s, placement, deploy, stack,
                                        prestart, clock, on_live)
-            local_fmus = [p for p in plan_fmus(scenario) if p.name not in placement]
+            all_fmus = plan_fmus(scenario)
+            local_fmus = [p for p in all_fmus if p.name not in placement]
             prepared = PreparedRun(scenario, local_fmus, launches, component_names(scenario),
                                    placement, deploy, limits)
-            hosted = _host_components(prepared, remote, clock)
+            options = _Options(fmu_hosting.start_time(scenario, all_fmus),
+                               fmu_hosting.deadlines(scenario, prepared.names, deadline_s),
+                               fmu_log, page, tuple(observers))
+            hosted = _host_components(prepared, remote, clock, out, options)
             return _execute(prepared, hosted, remote, out, transport, run_id, realtime,
-                            progress, clock, observers)
+                            progress, clock, options)
         except BaseException as exc:  # the announced folder says why the run never started
             located = locate_parameter_problem(scenario, exc)
             write_start_failure(out, scenario, run_id, transport,
                                 start_failure_text(located or exc), clock.as_dict())
+            if page is not None:
+                page.done()
             if located is not None:
                 raise located from None
             raise
+
+
+@dataclass
+class _Options:
+    """What the run settled before hosting: start time, deadlines, FMU logging, supervision."""
+
+    t0: float
+    deadlines: dict[str, float]  # component -> call deadline, s
+    fmu_log: bool
+    page: Any  # cosim.execution.supervisor.ControlPage, or None (not supervised)
+    observers: tuple[Any, ...] = ()  # more master observers, after the recorder
 
 
 def _make_run_folder(out: Path) -> Path:
@@ -236,14 +261,11 @@ def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s
     return remote
 
 
-def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock) -> dict[str, Any]:
+def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock, out: Path,
+                     options: _Options) -> dict[str, Any]:
     """Host every component; name -> HostedComponent in declaration order."""
-    from cosim.fmu.host import FmuComponent
-
-    hosted: dict[str, Any] = {}
-    for plan in prepared.fmus:
-        hosted[plan.name] = FmuComponent(plan.name, plan.path, plan.interface,
-                                         plan.parameters, plan.period_ticks)
+    hosted = fmu_hosting.host_fmus(prepared.scenario, prepared.fmus, out, options.deadlines,
+                                   options.fmu_log)
     clock.mark("fmus_ready")
     if remote is not None:
         _preload()
@@ -288,17 +310,20 @@ class _LivePublisher:
 
 def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Path,
              transport: str, run_id: str, realtime: float | None, progress: bool,
-             clock: StartupClock, extra_observers: Sequence[Any] = ()) -> RunResult:
+             clock: StartupClock, options: _Options) -> RunResult:
     """Run the master over the hosted components and write the run folder."""
     from cosim.results.manifest import base_manifest, finish_manifest
     from cosim.results.recorder import write_json, write_json_in_place
 
     scenario = prepared.scenario
     master, recorder, pacer, bar = _build_master(scenario, hosted, remote, out,
-                                                 realtime, progress, extra_observers)
+                                                 realtime, progress, options)
     check_recorded_size(scenario, master.layout,
                         {n: c.period_ticks for n, c in hosted.items()}, prepared.limits)
     manifest = base_manifest(scenario, prepared, hosted, transport, run_id, master.order)
+    manifest["start_time"] = master.t0
+    local = {n for n, c in hosted.items() if fmu_hosting.is_local_call(c)}
+    manifest["supervision"] = supervisor.supervision_entry(master.order, local, options.deadlines)
     live = None
     if remote is not None:  # where a watcher connects to see the run live
         live = {"run_id": run_id, "endpoint": remote.endpoint}
@@ -334,8 +359,11 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
                        ticks * scenario.tick, wall,
                        (ticks * scenario.tick / wall) if wall > 0 else float("inf"),
                        metrics, pacer.stats() if pacer else None,
-                       clock.marks.get("tick0"), clock.as_dict(), live)
-    write_json_in_place(out / "manifest.json", finish_manifest(manifest, result))
+                       clock.marks.get("tick0"), clock.as_dict(), live,
+                       _stopped_by(master.stop_request))
+    write_json_in_place(out / "manifest.json", finish_manifest(manifest, result, failure))
+    if options.page is not None:
+        options.page.done()
     if failure is not None and not isinstance(failure, (UserError, KeyboardInterrupt)):
         raise failure
     return result
@@ -343,18 +371,19 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
 
 def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
                   realtime: float | None, progress: bool,
-                  extra_observers: Sequence[Any] = ()) -> tuple[Master, Recorder, Any, Any]:
+                  options: _Options) -> tuple[Master, Recorder, Any, Any]:
     """Wire the hosted components and attach the observers."""
-    from cosim.fmu.host import FmuComponent
     from cosim.engine.master import Master
     from cosim.results.recorder import Recorder
     from cosim.engine.wiring import resolve_wiring
 
     unsupported = {n: c.interface.unsupported for n, c in hosted.items()
-                   if isinstance(c, FmuComponent)}
+                   if hasattr(c, "interface") and hasattr(c.interface, "unsupported")}
     edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()},
                            unsupported)
-    recorder = Recorder(out, scenario.record.include, scenario.record.exclude)
+    page = options.page
+    recorder = Recorder(out, scenario.record.include, scenario.record.exclude,
+                        on_writer=page.note_writer if page is not None else None)
     pacer = bar = None
     if realtime is not None:
         from cosim.engine.pacing import RealtimePacer
@@ -367,10 +396,16 @@ def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
     observers: list[Any] = [o for o in (recorder, pacer, bar) if o is not None]
     if getattr(remote, "live", None) is not None:
         observers.append(_LivePublisher(remote.live))
-    observers.extend(extra_observers)
-    master = Master(hosted, edges, scenario.tick, scenario.total_ticks,
-                    scenario.start_time, observers)
+    observers.extend(options.observers)
+    master = Master(hosted, edges, scenario.tick, scenario.total_ticks, options.t0, observers,
+                    crumb=page.crumb if page is not None else None)
     return master, recorder, pacer, bar
+
+
+def _stopped_by(request: Any) -> dict[str, Any] | None:
+    """RunResult.stopped_by for a component's request to end the run (or None)."""
+    return None if request is None else {"component": request.component, "tick": request.tick,
+                                         "time": request.time, "reason": request.reason}
 
 
 def _failure_text(exc: BaseException) -> str:

@@ -4,13 +4,21 @@ Value references are resolved once from the FMU's interface (canonical names,
 see `cosim.fmu.interface`); each step sets the held inputs, calls doStep from
 the previous communication point and reads the outputs through preallocated
 ctypes arrays. Every FMI error becomes a `ComponentFailure` carrying the last
-messages the FMU logged.
+messages the FMU logged (logging is always on; with `log_file` every message
+also goes to the run's run.log, warnings and errors to the terminal too).
+
+FMI call sequence: after a Fatal status no FMI function is called any more
+(not even freeInstance, which FMI forbids then); after an Error only
+freeInstance. A termination request (FMI 2: Discard with fmi2Terminated, FMI 3:
+terminateSimulation) raises `StopRequested` with the outputs of that step, which
+the master records before it ends the run normally.
 """
 
 from __future__ import annotations
 
 import ctypes
 import shutil
+import sys
 from collections import deque
 from collections.abc import Mapping
 from pathlib import Path
@@ -19,28 +27,59 @@ from typing import Any
 import fmpy
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Terminated)
 from fmpy.fmi3 import FMU3Slave
 from fmpy.logging import addLoggerProxy
 
 from cosim.component import Port, Value
-from cosim.errors import ComponentFailure, FmuInterfaceError
+from cosim.errors import ComponentFailure, FmuInterfaceError, StopRequested
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+FATAL = 4
 LOG_KEEP = 8  # last FMU log messages kept for error reports
+ECHO_LIMIT = 20  # warnings and errors shown on the terminal; the rest only in run.log
 
 
 class FmuLog:
-    """Keeps the last messages an FMU logged (FMI 2 logger / FMI 3 logMessage)."""
+    """Keeps the last messages an FMU logged (FMI 2 logger / FMI 3 logMessage).
 
-    def __init__(self) -> None:
+    Args:
+        component: the component's name, for the lines of run.log and the terminal.
+        sink: a text file (run.log, opened for appending) that gets every
+            message; None: messages are only kept for error reports.
+    """
+
+    def __init__(self, component: str = "", sink: Any = None) -> None:
         self.messages: deque[str] = deque(maxlen=LOG_KEEP)
+        self.problems: deque[str] = deque(maxlen=LOG_KEEP)  # warnings, errors and fatals
+        self.component, self.sink, self.echoed = component, sink, 0
+        self.time = 0.0  # the time of the call under way, for the lines of run.log
 
     def add(self, status: int, category: bytes | None, message: bytes | None) -> None:
         """Record one message (bytes from the C side)."""
         text = (message or b"").decode("utf-8", "replace").strip()
         cat = (category or b"").decode("utf-8", "replace")
-        self.messages.append(f"[{_STATUS.get(status, status)}{'/' + cat if cat else ''}] {text}")
+        entry = f"[{_STATUS.get(status, status)}{'/' + cat if cat else ''}] {text}"
+        self.messages.append(entry)
+        if status in (1, 3, 4):
+            self.problems.append(entry)
+        if self.sink is not None:
+            self._write(status, entry)
+
+    def _write(self, status: int, entry: str) -> None:
+        line = f"t={self.time:.10g} {self.component}: {entry}\n"
+        self.sink.write(line)
+        self.sink.flush()
+        if status in (1, 3, 4) and self.echoed < ECHO_LIMIT:  # warning, error, fatal
+            self.echoed += 1
+            more = " (further messages only in run.log)" if self.echoed == ECHO_LIMIT else ""
+            sys.stderr.write(f"FMU {line.rstrip()}{more}\n")
+
+    def close(self) -> None:
+        """Close the sink (run.log) if there is one."""
+        if self.sink is not None:
+            self.sink.close()
+            self.sink = None
 
     def fmi2(self, env, instance, status, category, message) -> None:  # noqa: ANN001
         """FMI 2 logger callback (message already formatted by fmpy's proxy)."""
@@ -51,8 +90,10 @@ class FmuLog:
         self.add(status, category, message)
 
     def text(self) -> str:
-        """The kept messages, newest last, or a note that there were none."""
-        return "; ".join(self.messages) if self.messages else "the FMU logged no message"
+        """The last warnings and errors logged (else the last message), or a note that there were none."""
+        if self.problems:
+            return "; ".join(self.problems)
+        return self.messages[-1] if self.messages else "the FMU logged no message"
 
 
 class FmuComponent:
@@ -66,12 +107,15 @@ class FmuComponent:
         parameters: canonical parameter name -> value (uncertainty applied),
             set before initialization.
         period_ticks: master ticks between two steps.
+        log_file: run.log of the run, to append the FMU's messages to (and
+            show its warnings and errors); None: kept only for error reports.
     """
 
     direct_feedthrough = False  # co-simulation FMUs integrate over [t_prev, t)
 
     def __init__(self, name: str, path: str | Path, interface: Any,
-                 parameters: Mapping[str, float], period_ticks: int) -> None:
+                 parameters: Mapping[str, float], period_ticks: int,
+                 log_file: str | Path | None = None) -> None:
         self.name = name
         self.path = Path(path)
         self.interface = interface
@@ -96,15 +140,17 @@ class FmuComponent:
             raise FmuInterfaceError(f"component {name!r}: FMU {self.path.name} has no "
                                     f"parameter {', '.join(map(repr, unknown))}")
         self._param_vrs = [vrs[n] for n in self.parameters]
-        self.log = FmuLog()
+        sink = open(log_file, "a", encoding="utf-8") if log_file is not None else None
+        self.log = FmuLog(name, sink)
         self._fmu: Any = None
         self._unzipped: str | None = None
         self._t_prev = 0.0
         self._initialized = False
+        self._fatal = False  # after Fatal, FMI allows no call at all
 
     def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Instantiate, set parameters and inputs, initialize at t0, read outputs."""
-        self._t_prev = t0
+        self._t_prev = self.log.time = t0
         try:
             self._instantiate()
             fmu = self._fmu
@@ -129,33 +175,51 @@ class FmuComponent:
         The hot path calls the FMU's C functions directly (fmpy's wrappers cost
         several microseconds per call) and checks their status itself.
         """
+        self.log.time = t
         try:
             self._set_inputs(inputs)
             status = self._do_step(self._t_prev, t - self._t_prev)
-            if status > 1:  # discard, error, fatal: the step did not complete
-                raise FMICallException(self._do_step_name, status)
-            if self.fmi3 and self._terminate.value:
-                raise ComponentFailure(self.name, tick, t, "the FMU asked to terminate "
-                                       f"the simulation: {self.log.text()}")
+            if status > 1 or (self.fmi3 and self._terminate.value):
+                self._step_problem(tick, t, status)
             self._t_prev = t
             return self._get_outputs()
-        except ComponentFailure:
+        except (ComponentFailure, StopRequested):
             raise
         except Exception as exc:
             raise self._failure(tick, t, exc) from exc
 
+    def _step_problem(self, tick: int, t: float, status: int) -> None:
+        """A step that did not end OK: a termination request (StopRequested) or an error."""
+        if self.fmi3:
+            asked = bool(self._terminate.value) and status <= 2
+        else:
+            asked = status == 2 and bool(self._fmu.getBooleanStatus(fmi2Terminated))
+        if not asked:
+            raise FMICallException(self._do_step_name, status)
+        outputs = self._get_outputs()  # allowed in FMI 2's stepFailed state and FMI 3
+        self._t_prev = t
+        raise StopRequested(self.name, tick, t, outputs, "the FMU asked to terminate the "
+                            f"simulation ({self.log.text()})")
+
     def stop(self) -> dict[str, float]:
-        """Terminate (when initialized), free the instance and the unzipped files."""
+        """Terminate (when initialized), free the instance and the unzipped files.
+
+        After a Fatal status nothing is called: the instance and its library
+        stay as they are until the process ends.
+        """
         try:
-            if self._fmu is not None:
+            if self._fmu is not None and not self._fatal:
                 if self._initialized:
                     self._fmu.terminate()
                 self._fmu.freeInstance()
         except Exception as exc:
             raise self._failure(None, self._t_prev, exc) from exc
         finally:
+            if self._fatal and self._fmu is not None:
+                _keep_alive.append((self._fmu, getattr(self, "_callbacks", None)))
             self._fmu = None
             self._initialized = False
+            self.log.close()
             if self._unzipped:
                 shutil.rmtree(self._unzipped, ignore_errors=True)
                 self._unzipped = None
@@ -168,11 +232,11 @@ class FmuComponent:
                       modelIdentifier=md.coSimulation.modelIdentifier, instanceName=self.name)
         if self.fmi3:
             self._fmu = FMU3Slave(**kwargs)
-            self._fmu.instantiate(loggingOn=False, logMessage=self.log.fmi3)
+            self._fmu.instantiate(loggingOn=True, logMessage=self.log.fmi3)
             return
         self._fmu = FMU2Slave(**kwargs)
         self._callbacks = _fmi2_callbacks(self.log)
-        self._fmu.instantiate(callbacks=self._callbacks, loggingOn=False)
+        self._fmu.instantiate(callbacks=self._callbacks, loggingOn=True)
 
     def _set_real(self, vrs: list[int], values: list[float]) -> None:
         if self.fmi3:
@@ -222,8 +286,15 @@ class FmuComponent:
 
     def _failure(self, tick: int | None, t: float, exc: Exception) -> ComponentFailure:
         self._initialized = False  # after an FMI error only freeInstance is allowed
+        status = getattr(exc, "status", None)
+        if status == FATAL:
+            self._fatal = True
+        details = {"kind": "fmi_status", "status": _STATUS.get(status, status)} if status else {}
         return ComponentFailure(self.name, tick, t, f"{exc} (FMU {self.path.name}: "
-                                f"{self.log.text()})")
+                                f"{self.log.text()})", details)
+
+
+_keep_alive: list[Any] = []  # FMU instances (and their callbacks) after a Fatal status
 
 
 def _fmi2_callbacks(log: FmuLog) -> fmi2CallbackFunctions:

@@ -9,7 +9,11 @@ every float written by `repr` (the shortest text that reads back to the same
 float64). It does so either while the run goes on, in a separate process that
 tails the spool (`main`, so the text formatting runs on the other core), or in
 one pass (`rebuild_csv`, for the recorder's fallback and `cosim recover`).
-A partial last row in a spool (a master killed mid-write) is ignored. A row
+A spool starts with a page whose first 8 bytes count the complete rows
+(`DATA_OFFSET`; the recorder writes each row into an mmap window of the file,
+then the count, so a row is in the kernel's page cache the moment the tick
+completes and survives the master's death); a spool without that page (an
+older run) holds whole rows only, a partial last row being ignored. A row
 whose values are bit-identical to the previous row's (a held planner window)
 reuses that row's text: formatting floats is the whole cost of this module.
 
@@ -37,6 +41,7 @@ from typing import IO
 SPOOL_SUFFIX = ".f64"
 HEADER_SUFFIX = ".f64.json"
 SPOOL_FORMAT = "cosim-spool-f64"
+DATA_OFFSET = 4096  # rows start here; the first 8 bytes count the complete rows
 POLL_S = 0.2
 CHUNK_BYTES = 1 << 20  # converted per read: bounds the writer's memory
 EXIT_MASTER_GONE = 3
@@ -55,12 +60,15 @@ class SpoolHeader:
         columns: CSV column names, "time" first; one float64 per column per row.
         csv: the CSV's file name, in the header's folder.
         byteorder: "little" or "big", as the floats were written.
+        data_offset: where the rows start in the spool: `DATA_OFFSET` (a row
+            count first), or 0 (whole rows only, as older runs wrote them).
     """
 
     path: Path
     columns: tuple[str, ...]
     csv: str
     byteorder: str
+    data_offset: int = 0
 
     @property
     def spool_path(self) -> Path:
@@ -81,18 +89,28 @@ class SpoolHeader:
         """The CSV's first line."""
         return ",".join(self.columns) + "\n"
 
+    def committed_bytes(self, fd: int) -> int:
+        """Bytes of complete rows in the open spool `fd` (from its row count, if it has one)."""
+        available = max(0, os.fstat(fd).st_size - self.data_offset)
+        if not self.data_offset:
+            return available // self.row_bytes * self.row_bytes
+        count = int.from_bytes(os.pread(fd, 8, 0), self.byteorder, signed=True)
+        return max(0, min(count * self.row_bytes, available // self.row_bytes * self.row_bytes))
 
-def write_header(spool_path: Path, csv_name: str, columns: list[str]) -> SpoolHeader:
+
+def write_header(spool_path: Path, csv_name: str, columns: list[str],
+                 data_offset: int = DATA_OFFSET) -> SpoolHeader:
     """Write the JSON header of a spool (atomically) and return it.
 
     Args:
         spool_path: the spool file `<stem>.f64` the header describes.
         csv_name: the CSV file name, in the same folder.
         columns: column names, "time" first.
+        data_offset: where the rows start in the spool (see `SpoolHeader`).
     """
     path = spool_path.with_name(spool_path.name + ".json")
     data = {"format": SPOOL_FORMAT, "csv": csv_name, "columns": list(columns),
-            "byteorder": sys.byteorder}
+            "byteorder": sys.byteorder, "data_offset": data_offset}
     tmp = path.with_name(path.name + ".tmp")
     try:
         tmp.write_text(json.dumps(data) + "\n", encoding="utf-8")
@@ -100,7 +118,7 @@ def write_header(spool_path: Path, csv_name: str, columns: list[str]) -> SpoolHe
     except OSError:  # a full disk: no half-written .tmp stays behind
         _discard(tmp)
         raise
-    return SpoolHeader(path, tuple(columns), csv_name, sys.byteorder)
+    return SpoolHeader(path, tuple(columns), csv_name, sys.byteorder, data_offset)
 
 
 def _discard(path: Path) -> None:
@@ -138,7 +156,10 @@ def read_header(path: Path) -> SpoolHeader:
     byteorder = data.get("byteorder")
     if byteorder not in ("little", "big"):
         raise SpoolError(f"{path}: byteorder: expected 'little' or 'big', got {byteorder!r}")
-    return SpoolHeader(Path(path), tuple(columns), csv, byteorder)
+    offset = data.get("data_offset", 0)
+    if offset not in (0, DATA_OFFSET):
+        raise SpoolError(f"{path}: data_offset: expected 0 or {DATA_OFFSET}, got {offset!r}")
+    return SpoolHeader(Path(path), tuple(columns), csv, byteorder, offset)
 
 
 class RowFormatter:
@@ -218,7 +239,9 @@ class SpoolTail:
             the number of rows appended to the CSV.
         """
         size = self.header.row_bytes
-        data = os.pread(self._fd, CHUNK_BYTES // size * size, self.offset)
+        end = self.header.committed_bytes(self._fd)
+        data = os.pread(self._fd, min(CHUNK_BYTES // size * size, end - self.offset),
+                        self.header.data_offset + self.offset)
         rows = len(data) // size
         if rows:
             self._csv.write(self._formatter.format(data[:rows * size]))
@@ -253,23 +276,26 @@ def rebuild_csv(header: SpoolHeader) -> tuple[int, int]:
         source = open(spool, "rb")
     except OSError as exc:
         raise SpoolError(f"{spool}: cannot read the spool: {exc.strerror}") from None
-    size, formatter, rows = header.row_bytes, RowFormatter(len(header.columns), header.byteorder), 0
+    size, formatter = header.row_bytes, RowFormatter(len(header.columns), header.byteorder)
     tmp = header.csv_path.with_name(header.csv + ".tmp")
     try:
         with source, open(tmp, "w", encoding="ascii", newline="\n") as out:
             out.write(header.csv_header_line())
-            tail = b""
-            while chunk := source.read(CHUNK_BYTES // size * size):
-                data = tail + chunk
-                whole = len(data) // size * size
-                out.write(formatter.format(data[:whole]))
-                rows += whole // size
-                tail = data[whole:]
+            end = header.committed_bytes(source.fileno())
+            partial = 0 if header.data_offset else os.fstat(source.fileno()).st_size - end
+            source.seek(header.data_offset)
+            done = 0
+            while done < end:
+                chunk = source.read(min(CHUNK_BYTES // size * size, end - done))
+                if not chunk:
+                    break
+                out.write(formatter.format(chunk))
+                done += len(chunk)
         os.replace(tmp, header.csv_path)
     except OSError:  # a full disk: no half-written .tmp stays behind
         _discard(tmp)
         raise
-    return rows, len(tail)
+    return done // size, partial
 
 
 def _follow(tails: list[SpoolTail], control: IO[bytes]) -> bool:

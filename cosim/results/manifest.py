@@ -119,13 +119,16 @@ def _fmu_entry(plan: Any) -> dict[str, Any]:
     }
 
 
-def finish_manifest(manifest: dict[str, Any], result: Any) -> dict[str, Any]:
+def finish_manifest(manifest: dict[str, Any], result: Any,
+                    failure: BaseException | None = None) -> dict[str, Any]:
     """The final manifest: status, error, ticks, times, real-time factor, pacing
-    stats, time to tick 0 and the start-up marks.
+    stats, time to tick 0 and the start-up marks; `stopped_by` when a component
+    ended the run, `cause` when a component failure says how it failed.
 
     Args:
         manifest: the manifest written before tick 0.
         result: the RunResult.
+        failure: what ended the run, if anything did.
     """
     final = dict(manifest)
     final.update({
@@ -139,4 +142,9 @@ def finish_manifest(manifest: dict[str, Any], result: Any) -> dict[str, Any]:
         "time_to_tick0_s": result.time_to_tick0_s,
         "startup": result.startup,
     })
+    if getattr(result, "stopped_by", None) is not None:
+        final["stopped_by"] = result.stopped_by
+    if getattr(failure, "details", None):
+        final["cause"] = {**failure.details, "component": failure.component,
+                          "tick": failure.tick, "time": failure.time}
     return final

@@ -7,17 +7,19 @@ component. Floats are written with `repr`, the shortest text that reads back to
 the identical float64, so a reload is bit-identical. `write_json` writes the
 manifest and metrics atomically.
 
-Text formatting is too slow for the master's loop, so the loop only appends
-each row's raw float64 values to a binary spool per table (`signals.f64`,
+Text formatting is too slow for the master's loop, so the loop only writes
+each row's raw float64 values into a binary spool per table (`signals.f64`,
 `arrays/<name>.f64`, each with a JSON header `*.f64.json` naming its columns,
-see `cosim.results.csv_writer`), written to the OS at least every `flush_interval`
-seconds of wall time. A writer process started at the first flush tails the
-spools and appends the CSV text on the other core; `close` (which the master's
-caller runs in `finally`) lets it finish, checks its row counts (rebuilding
-the CSV in this process if the writer failed) and removes the spools unless
-`keep_spool`. So a failing component loses nothing before its tick; if the
-master process itself is killed, the writer still converts what is on disk,
-and `cosim.results.recover` (`cosim recover RUN_DIR`) rebuilds every CSV from the spools.
+see `cosim.results.csv_writer`) through an mmap window, then bumps the spool's
+row count: every completed tick is in the kernel when the tick completes, even
+if the master is then killed (SIGKILL, a segfault in FMU code). A writer
+process started after `flush_interval` seconds tails the spools and appends
+the CSV text on the other core; `close` (which the master's caller runs in
+`finally`) lets it finish, checks its row counts (rebuilding the CSV in this
+process if the writer failed) and removes the spools unless `keep_spool`. So
+a failing component loses nothing before its tick; if the master process
+itself dies, the run's supervisor (`cosim.execution.supervisor`) or `recover`
+(`cosim recover RUN_DIR`, `cosim.results.recover`) rebuilds every CSV from the spools.
 
 A run folder that cannot be written (disk full, read-only, removed mid-run)
 raises one `RunFolderError` naming the folder, the reason and the tick; the
@@ -29,6 +31,8 @@ from __future__ import annotations
 import contextlib
 import fnmatch
 import json
+import math
+import mmap
 import operator
 import os
 import struct
@@ -41,15 +45,17 @@ from typing import Any
 
 import numpy as np
 
-from cosim.results.csv_writer import (SPOOL_SUFFIX, SpoolError, SpoolHeader,
-                              rebuild_csv, write_header)
 from cosim.errors import RunFolderError
+from cosim.results.csv_writer import (DATA_OFFSET, SPOOL_SUFFIX, SpoolError, SpoolHeader,
+                                      rebuild_csv, write_header)
 from cosim.results.jsonfile import write_json, write_json_in_place  # noqa: F401 - re-exported
 
 SIGNALS_FILE = "signals.csv"
 ARRAYS_DIR = "arrays"
 WRITER_SCRIPT = Path(__file__).with_name("csv_writer.py")
 WRITER_STALL_S = 10.0  # a writer that converts nothing for this long is given up
+FOLDER_CHECK_ROWS = 255  # look for a removed run folder every 256 rows (one fstat)
+WINDOW_BYTES = 1 << 20  # mmap window of a spool (about; whole rows and pages)
 
 
 def selected(name: str, include: Sequence[str], exclude: Sequence[str]) -> bool:
@@ -64,7 +70,15 @@ def selected(name: str, include: Sequence[str], exclude: Sequence[str]) -> bool:
 
 
 class _Table:
-    """One recorded table: its CSV header line, its spool file and the bytes not yet written.
+    """One recorded table: its CSV header line and its spool, written through an mmap window.
+
+    Each row goes straight into the kernel's page cache (an mmap of the spool
+    file, `MAP_SHARED`), then the row count at the spool's start: a completed
+    tick is on disk for every other process, and survives the master's death,
+    without a system call per row. The file grows by windows of about
+    `WINDOW_BYTES`, allocated first (`posix_fallocate`, so a full disk is an
+    OSError there, never a SIGBUS on a later write); only the current window
+    is mapped, so memory stays flat with the run's length.
 
     Args:
         folder: where the CSV, the spool and its header go.
@@ -78,25 +92,38 @@ class _Table:
                  offset: int = 0, size: int = 0, period: int = 1) -> None:
         self.offset, self.stop, self.period = offset, offset + size, period
         spool = folder / f"{stem}{SPOOL_SUFFIX}"
-        self.fd = os.open(spool, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         self.header: SpoolHeader = write_header(spool, f"{stem}.csv", columns)
         with open(self.header.csv_path, "w", encoding="ascii", newline="\n") as csv:
             csv.write(self.header.csv_header_line())
-        self.pending = bytearray()
+        self.row_bytes = self.header.row_bytes
+        self.fd = os.open(spool, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o644)
+        os.posix_fallocate(self.fd, 0, DATA_OFFSET)
+        self._count_map = mmap.mmap(self.fd, DATA_OFFSET)
+        self.count = memoryview(self._count_map).cast("q")
+        step = math.lcm(self.row_bytes, mmap.ALLOCATIONGRANULARITY)
+        self.window_bytes = step * max(1, WINDOW_BYTES // step)  # whole rows, whole pages
+        self.window: mmap.mmap | None = None
+        self.base = self.pos = self.end = 0  # data bytes: window start, written, window end
         self.rows = 0
 
-    def write_pending(self) -> None:
-        """Hand the queued bytes to the OS (whole rows, unless the process dies mid-way)."""
-        with memoryview(self.pending) as view:
-            done = 0
-            while done < len(view):
-                done += os.write(self.fd, view[done:])
-        self.pending.clear()
+    def next_window(self) -> None:
+        """Allocate and map the next window of the spool (the current one is full)."""
+        if self.window is not None:
+            self.window.close()
+        start = DATA_OFFSET + self.end
+        os.posix_fallocate(self.fd, start, self.window_bytes)
+        self.window = mmap.mmap(self.fd, self.window_bytes, offset=start)
+        self.base, self.end = self.end, self.end + self.window_bytes
 
     def close(self) -> None:
-        """Write what is queued and close the spool (safe to call twice)."""
+        """Unmap and cut the spool to its complete rows (safe to call twice)."""
         if self.fd >= 0:
-            self.write_pending()
+            if self.window is not None:
+                self.window.close()
+                self.window = None
+            self.count.release()
+            self._count_map.close()
+            os.ftruncate(self.fd, DATA_OFFSET + self.pos)
             os.close(self.fd)
             self.fd = -1
 
@@ -112,18 +139,20 @@ class Recorder:
     Args:
         out_dir: the run folder (created when missing).
         include / exclude: fnmatch globs over "component.signal".
-        flush_interval: maximum wall time in seconds between two writes of the
-            spools to the OS.
+        flush_interval: wall time in seconds before the CSV writer process
+            starts (a short run is converted at close, without a process).
         keep_spool: keep the binary spools after the CSV files are complete.
+        on_writer: called with the CSV writer process's pid once it starts.
     """
 
     def __init__(self, out_dir: str | Path, include: Sequence[str] = ("*",),
                  exclude: Sequence[str] = (), flush_interval: float = 0.5,
-                 keep_spool: bool = False) -> None:
+                 keep_spool: bool = False, on_writer: Any = None) -> None:
         self.out_dir = Path(out_dir)
         self.include, self.exclude = list(include), list(exclude)
         self.flush_interval = flush_interval
         self.keep_spool = keep_spool
+        self.on_writer = on_writer
         self.columns: list[str] = []
         self.rows = 0
         self.writer_pid: int | None = None  # the CSV writer process, once started
@@ -134,7 +163,7 @@ class Recorder:
         self._writer_tried = False
         self._closed = False
         self.failed: RunFolderError | None = None  # the folder could not be written
-        self._last_flush = time.monotonic()
+        self._started = time.monotonic()
 
     def begin(self, master: Any) -> None:
         """Choose the columns from the master's layout; write the CSV and spool headers."""
@@ -152,8 +181,8 @@ class Recorder:
         index = [i for _, i in chosen]
         self._pick = operator.itemgetter(*index) if len(index) > 1 \
             else (lambda values: [values[i] for i in index])
-        self._pack = struct.Struct(f"={1 + len(index)}d").pack
-        self._pack_time = struct.Struct("=d").pack
+        self._pack_into = struct.Struct(f"={1 + len(index)}d").pack_into
+        self._pack_time_into = struct.Struct("=d").pack_into
         self._signals = _Table(self.out_dir, SIGNALS_FILE[:-len(".csv")], ["time"] + self.columns)
         self._tables = [self._signals]
         groups: dict[int, list[_Table]] = {}
@@ -168,43 +197,59 @@ class Recorder:
                 groups.setdefault(period, []).append(table)
         self._array_groups = sorted(groups.items())
         self._arrays_seen: Any = None
-        self._last_flush = time.monotonic()
+        self._started = time.monotonic()
 
     def after_tick(self, tick: int, t: float, values: list[float], arrays: np.ndarray) -> None:
-        """Queue this tick's raw rows; write them to the spools when the interval has passed."""
-        signals = self._signals
-        signals.pending += self._pack(t, *self._pick(values))
-        signals.rows += 1
+        """Write this tick's raw rows into the spools (in the kernel from here on)."""
+        table = self._signals
+        if table.pos == table.end:
+            self._next_window(table, tick)
+        pos = table.pos
+        self._pack_into(table.window, pos - table.base, t, *self._pick(values))
+        table.pos = pos + table.row_bytes
+        table.rows += 1
+        table.count[0] = table.rows  # after the row: a reader never counts a row not written
         for period, tables in self._array_groups:
             if tick % period == 0:
                 if arrays is not self._arrays_seen:  # a memoryview made once, not per tick
                     self._arrays_seen, self._arrays_view = arrays, memoryview(arrays).cast("B")
-                stamp = self._pack_time(t)
                 for table in tables:
-                    table.pending += stamp
-                    table.pending += self._arrays_view[table.offset * 8:table.stop * 8]
-                    table.rows += 1
+                    self._write_array_row(table, t)
         self.rows += 1
-        if time.monotonic() - self._last_flush >= self.flush_interval:
-            self.flush()
-            if not self._writer_tried:
-                self._start_writer()
+        if not self.rows & FOLDER_CHECK_ROWS:
+            self._check_folder(tick)
+        if not self._writer_tried and time.monotonic() - self._started >= self.flush_interval:
+            self._start_writer()
+
+    def _next_window(self, table: _Table, tick: int) -> None:
+        """Map the table's next spool window; a full disk is a RunFolderError at this tick."""
+        try:
+            table.next_window()
+        except OSError as exc:
+            raise self._failure(exc, tick) from None
+
+    def _check_folder(self, tick: int) -> None:
+        """Rows written through the mmap go on into a removed file: look for its link now and then."""
+        try:
+            removed = os.fstat(self._signals.fd).st_nlink == 0
+        except OSError as exc:
+            raise self._failure(exc, tick) from None
+        if removed:
+            raise self._failure(RunFolderError(self.out_dir, "the spool was removed", tick), tick)
+
+    def _write_array_row(self, table: _Table, t: float) -> None:
+        if table.pos == table.end:
+            self._next_window(table, self.rows)
+        at = table.pos - table.base
+        self._pack_time_into(table.window, at, t)
+        table.window[at + 8:at + table.row_bytes] = \
+            self._arrays_view[table.offset * 8:table.stop * 8]
+        table.pos += table.row_bytes
+        table.rows += 1
+        table.count[0] = table.rows
 
     def flush(self) -> None:
-        """Write the queued complete rows to the spools (the OS has them from here on).
-
-        Raises:
-            RunFolderError when the folder cannot be written or was removed.
-        """
-        try:
-            for table in self._tables:
-                if table.pending and table.fd >= 0:
-                    table.write_pending()
-            if self._tables and os.fstat(self._signals.fd).st_nlink == 0:
-                raise RunFolderError(self.out_dir, "the spool was removed", self.rows - 1)
-        except (OSError, RunFolderError) as exc:
-            raise self._failure(exc, self.rows - 1) from None
-        self._last_flush = time.monotonic()
+        """Nothing to do: every row is in the kernel's page cache once written (kept for callers)."""
 
     def _failure(self, exc: Exception, tick: int) -> RunFolderError:
         """Remember the first folder failure (the recorder writes nothing more) and return it."""
@@ -216,8 +261,6 @@ class Recorder:
             else:
                 self.failed = RunFolderError(self.out_dir, exc if isinstance(exc, OSError)
                                              else str(exc), tick)
-        for table in self._tables:
-            table.pending = bytearray()  # a new buffer: the old one may still be exported
         return self.failed
 
     def close(self) -> None:
@@ -259,6 +302,8 @@ class Recorder:
         """After a folder failure: close the spools as they are (kept for `cosim recover`)
         and stop the writer process."""
         for table in self._tables:
+            with contextlib.suppress(OSError, ValueError, BufferError):
+                table.close()
             if table.fd >= 0:
                 with contextlib.suppress(OSError):
                     os.close(table.fd)
@@ -279,6 +324,8 @@ class Recorder:
             self.writer_problem = f"CSV writer process not started: {exc}"
             return
         self.writer_pid = self._writer.pid
+        if self.on_writer is not None:
+            self.on_writer(self.writer_pid)
 
     def _finish_writer(self) -> str | None:
         """Tell the writer the spools are complete and wait; why its CSV is not trusted, or None."""

@@ -77,22 +77,29 @@ def _mark_recovered(manifest_path: Path, signals: SpoolHeader) -> None:
         "error": manifest.get("error") or f"the run ended without finishing (status {previous!r})",
         "ticks": max(rows - 1, 0),
         "last_time_s": last_time,
-        "sim_time_s": None if last_time is None else last_time - manifest.get(
-            "scenario", {}).get("start_time", 0.0),
+        "sim_time_s": None if last_time is None else last_time - _start_time(manifest),
         "recovered_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(
             timespec="seconds"),
     })
     write_json(manifest_path, manifest)
 
 
+def _start_time(manifest: dict) -> float:
+    """The run's start time: the master's (manifest), else the scenario's, else 0."""
+    for value in (manifest.get("start_time"), manifest.get("scenario", {}).get("start_time")):
+        if isinstance(value, (int, float)):
+            return float(value)
+    return 0.0
+
+
 def _last_row_time(header: SpoolHeader) -> tuple[int, float | None]:
     """(complete rows in the spool, time of the last one or None)."""
     size = header.row_bytes
     with open(header.spool_path, "rb") as spool:
-        rows = spool.seek(0, 2) // size
+        rows = header.committed_bytes(spool.fileno()) // size
         if rows == 0:
             return 0, None
-        spool.seek((rows - 1) * size)
+        spool.seek(header.data_offset + (rows - 1) * size)
         raw = spool.read(8)
     order = "<" if header.byteorder == "little" else ">"
     return rows, struct.unpack(f"{order}d", raw)[0]

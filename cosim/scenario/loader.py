@@ -193,6 +193,8 @@ def _suggestion(loc: tuple[str | int, ...]) -> str:
     """' (did you mean ...?)' for a misspelt field name (never the name itself)."""
     if not loc or not isinstance(loc[-1], str):
         return ""
+    if loc[0] == "connections":  # a connection's fields are few: suggest only those
+        return did_you_mean(loc[-1], ["from", "to", *Connection.model_fields])
     return did_you_mean(loc[-1], sorted(_field_names() - {loc[-1]}))
 
 

@@ -66,6 +66,11 @@ class FmuSpec(BaseModel):
         uncertainty: per-parameter scale/offset applied on top of `parameters`.
         variables: canonical name -> the FMU's variable name (foreign FMUs).
         host: "local" or the name of a worker.
+        deadline: seconds an FMI call may take (None: the run's `--deadline`).
+        isolate: run the FMU in a local process of its own (its crash or
+            hang then cannot touch the master).
+        log: send the FMU's log messages to run.log (warnings and errors
+            also to the terminal).
     """
 
     model_config = STRICT
@@ -75,6 +80,9 @@ class FmuSpec(BaseModel):
     uncertainty: dict[str, Uncertainty] = {}
     variables: dict[str, str] = {}
     host: str = Field("local", min_length=1)
+    deadline: PositiveFloat | None = None
+    isolate: bool = False
+    log: bool = False
 
 
 class PythonSpec(BaseModel):
@@ -86,6 +94,7 @@ class PythonSpec(BaseModel):
             else every master tick).
         parameters: keyword arguments of the class.
         host: "local" or the name of a worker.
+        deadline: seconds a step may take in-process (None: the run's `--deadline`).
     """
 
     model_config = STRICT
@@ -93,6 +102,7 @@ class PythonSpec(BaseModel):
     period: PositiveFloat | None = None
     parameters: dict[str, Any] = {}
     host: str = Field("local", min_length=1)
+    deadline: PositiveFloat | None = None
 
 
 def _component_tag(value: Any) -> str | None:
@@ -219,7 +229,7 @@ class Scenario(BaseModel):
     description: str = ""
     duration: PositiveFloat
     tick: PositiveFloat
-    start_time: FiniteFloat = 0.0
+    start_time: FiniteFloat | None = None  # None: the FMUs' DefaultExperiment, else 0
     components: dict[str, ComponentSpec] = Field(min_length=1)
     sources: dict[str, SourceSpec] = {}
     connections: list[ConnectionEntry] = []

@@ -199,3 +199,20 @@ class PController(Component):
 
     def finish(self):
         return {"steps": float(self.steps)}
+
+
+class Segfault(Component):
+    """Echoes u until t reaches `at`, then reads address 0 (SIGSEGV in this process)."""
+
+    inputs = (Port("u"),)
+    outputs = (Port("y"),)
+
+    def __init__(self, at: float = 0.1):
+        self.at = at
+
+    def step(self, t, inputs):
+        if t >= self.at - 1e-9:
+            import ctypes
+
+            ctypes.string_at(0)
+        return {"y": inputs["u"]}

@@ -170,6 +170,23 @@ def build_lag(out_dir: Path) -> dict[int, Path]:
     return {v: fmu_build.build_fmu_from(TEST_FMUS_DIR / "Lag", v, out_dir) for v in (2, 3)}
 
 
+class FaultyFmus(dict):
+    """tests/fmus/Faulty and FaultyOnce, each built on first use: [(model, version)] -> path.
+
+    Args:
+        out_dir: folder for the .fmu files.
+    """
+
+    def __init__(self, out_dir: Path) -> None:
+        super().__init__()
+        self.out_dir = out_dir
+
+    def __missing__(self, key: tuple[str, int]) -> Path:
+        model, version = key
+        path = self[key] = fmu_build.build_fmu_from(TEST_FMUS_DIR / model, version, self.out_dir)
+        return path
+
+
 LAG_SCENARIO = """\
 name: lag_loop
 duration: 1.0

@@ -1,13 +1,16 @@
-"""Faults of the run folder: a full disk (a small tmpfs mounted here, or os.write
-failing with ENOSPC), a read-only folder, the folder removed mid-run. Each gives
+"""Faults of the run folder: a full disk (a small tmpfs mounted here, or the
+spool's next window failing to allocate with ENOSPC), a read-only folder, the folder removed mid-run. Each gives
 one line "cannot write the run folder X: <reason> at tick k", a failed run
 (status 1), a manifest that says failed where it can be written, no .tmp file,
 and spools that `cosim recover` turns into the CSV and a "recovered" manifest."""
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
+import math
+import mmap
 import os
 import shutil
 import subprocess
@@ -57,7 +60,8 @@ def small_disk(tmp_path):
 
 
 def test_full_disk_fails_the_run_in_one_line_and_recover_completes_it(tmp_path, small_disk,
-                                                                     capsys):
+                                                                     capsys, monkeypatch):
+    monkeypatch.setattr(recorder_module, "WINDOW_BYTES", 1)  # 12 kB windows: some fit in 40 kB
     out = small_disk / "run"
     assert _run(_scenario(tmp_path), out) == 1
     line = _error_line(capsys)
@@ -67,6 +71,7 @@ def test_full_disk_fails_the_run_in_one_line_and_recover_completes_it(tmp_path, 
     assert manifest["status"] == "failed" and "No space left on device" in manifest["error"]
     assert (out / "signals.f64").exists()  # kept for recover
     _no_tmp(out)
+    _fill(small_disk)  # the spool gave back its unused window: take that space too
     assert main(["recover", str(out)]) == 2  # still full: one line, no traceback
     assert "cannot write the run folder" in _error_line(capsys)
     _no_tmp(out)
@@ -81,26 +86,38 @@ def test_full_disk_fails_the_run_in_one_line_and_recover_completes_it(tmp_path, 
 
 
 def test_enospc_mid_run_stops_it_at_that_tick(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(recorder_module, "WINDOW_BYTES", 1)  # windows of one page: many allocations
     calls = {"n": 0}
-    real_write = os.write
+    real_allocate = os.posix_fallocate
 
-    def write(fd, data):
+    def allocate(fd, offset, length):
         calls["n"] += 1
-        if calls["n"] > 3:
+        if calls["n"] > 3:  # the row count's page, then two windows of rows
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        return real_write(fd, data)
+        return real_allocate(fd, offset, length)
 
-    monkeypatch.setattr(recorder_module.os, "write", write)
-    monkeypatch.setattr(recorder_module.Recorder.__init__, "__defaults__",
-                        (("*",), (), 0.0, False))  # flush every tick
+    monkeypatch.setattr(recorder_module.os, "posix_fallocate", allocate)
     out = tmp_path / "run"
     assert _run(_scenario(tmp_path), out) == 1
+    row_bytes = 8 * 3  # time, ramp.value, gain.y
+    rows_per_window = math.lcm(row_bytes, mmap.ALLOCATIONGRANULARITY) // row_bytes
+    tick = 2 * rows_per_window  # the first row that needed a third window
     line = _error_line(capsys)
     assert line == (f"run failed: cannot write the run folder {out}: No space left on device "
-                    "at tick 3")
+                    f"at tick {tick}")
     manifest = json.loads((out / "manifest.json").read_text())
-    assert (manifest["status"], manifest["ticks"]) == ("failed", 3)
+    assert (manifest["status"], manifest["ticks"]) == ("failed", tick)
     _no_tmp(out)
+    assert main(["recover", str(out)]) == 0  # every row before that tick is in the spool
+    assert len((out / "signals.csv").read_text().splitlines()) == 1 + tick
+
+
+def _fill(disk: Path) -> None:
+    """Write a file on `disk` until it is full."""
+    with open(disk / "filler", "wb", buffering=0) as filler:
+        with contextlib.suppress(OSError):
+            while True:
+                filler.write(b"\0" * 4096)
 
 
 def test_folder_removed_mid_run(tmp_path, capsys, monkeypatch):

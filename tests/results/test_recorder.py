@@ -20,7 +20,7 @@ from cosim.component import Component, Port
 from cosim.errors import ComponentFailure
 from cosim.transport.inproc import InprocComponent, PythonComponentLaunch
 from cosim.engine.master import Master
-from cosim.results.csv_writer import RowFormatter, format_rows
+from cosim.results.csv_writer import RowFormatter, format_rows, read_header
 from cosim.errors import UserError
 from cosim.results.recorder import Recorder, read_signals, selected, write_json
 from cosim.results.recover import recover
@@ -173,22 +173,34 @@ def test_partial_csv_after_failure_is_valid(tmp_path):
     assert read_csv(tmp_path / "signals.csv").shape == (8,)
 
 
+def _spooled_rows(folder, stem="signals"):
+    """The complete rows of a spool as another process sees them (count, then data)."""
+    header = read_header(folder / f"{stem}.f64.json")
+    fd = os.open(header.spool_path, os.O_RDONLY)
+    try:
+        data = os.pread(fd, header.committed_bytes(fd), header.data_offset)
+    finally:
+        os.close(fd)
+    return np.frombuffer(data, dtype=np.float64).reshape(-1, len(header.columns))
+
+
 def test_rows_reach_the_spool_as_they_go(tmp_path):
-    """With flush_interval 0 every tick's raw row is on disk before the next tick runs."""
-    sizes = []
+    """Every tick's raw row is in the kernel (row count included) before the next tick runs."""
+    seen = []
 
     class Peek:
         def begin(self, master):
             pass
 
         def after_tick(self, tick, t, values, arrays):
-            sizes.append((tmp_path / "signals.f64").stat().st_size)
+            rows = _spooled_rows(tmp_path)
+            seen.append((len(rows), rows[-1].tolist() == [t, *values[:2]]))
 
     comps = {"noisy": _comp("noisy", Noisy)}
-    recorder = Recorder(tmp_path, flush_interval=0.0)
+    recorder = Recorder(tmp_path, flush_interval=1e9)
     Master(comps, [], tick=0.1, total_ticks=4, observers=[recorder, Peek()]).run()
     recorder.close()
-    assert sizes == [k * 3 * 8 for k in range(1, 6)]  # rows of time, noisy.u, noisy.v
+    assert seen == [(k, True) for k in range(1, 6)]  # rows of time, noisy.u, noisy.v
     assert not list(tmp_path.rglob("*.f64*"))  # spools removed once the CSV is complete
     assert read_signals(tmp_path / "signals.csv")[1].shape == (5, 3)
 
@@ -253,7 +265,7 @@ def test_keep_spool_and_recover_rebuild_the_same_bytes(tmp_path):
     before = {p: p.read_bytes() for p in tmp_path.rglob("*.csv")}
     header = json.loads((tmp_path / "signals.f64.json").read_text())
     assert header["columns"] == ["time", "noisy.u", "noisy.v", "echo.e"]
-    assert (tmp_path / "signals.f64").stat().st_size == 31 * 4 * 8
+    assert (tmp_path / "signals.f64").stat().st_size == 4096 + 31 * 4 * 8  # cut to its rows
     done = recover(tmp_path, keep_spool=True)
     assert sorted((p.relative_to(tmp_path).as_posix(), rows, cut) for p, rows, cut in done) == [
         ("arrays/echo.h.csv", 11, 0), ("arrays/noisy.w.csv", 31, 0), ("arrays/noisy.z.csv", 31, 0),
@@ -300,8 +312,8 @@ def test_killed_master_leaves_a_spool_that_recover_turns_into_the_csv(tmp_path):
     script = KILLED_MASTER.format(root=str(REPO_ROOT))
     master_proc = subprocess.Popen([sys.executable, "-c", script, str(out)])
     try:
-        spool = out / "signals.f64"
-        _wait(lambda: spool.exists() and spool.stat().st_size >= 300 * 32, "300 spooled rows")
+        _wait(lambda: (out / "signals.f64.json").exists() and len(_spooled_rows(out)) >= 300,
+              "300 spooled rows")
         master_proc.send_signal(signal.SIGKILL)
         master_proc.wait()
         # the orphaned writer sees its stdin close, converts what is on disk and leaves
@@ -310,15 +322,12 @@ def test_killed_master_leaves_a_spool_that_recover_turns_into_the_csv(tmp_path):
         if master_proc.poll() is None:
             master_proc.kill()
             master_proc.wait()
-    size = spool.stat().st_size
-    rows = size // 32
+    rows = len(_spooled_rows(out))
     master, snaps = _run(tmp_path / "reference", ticks=rows - 1)
     expected = expected_files(master, snaps)
     assert (out / "signals.csv").read_bytes() == expected["signals.csv"]
-    with open(spool, "ab") as handle:
-        handle.write(b"\x01" * 5)  # a torn last row
     done = {p.relative_to(out).as_posix(): (n, cut) for p, n, cut in recover(out)}
-    assert done["signals.csv"] == (rows, size % 32 + 5)
+    assert done["signals.csv"] == (rows, 0)  # the count says which rows are complete
     for name, data in expected.items():
         got = (out / name).read_bytes()
         assert data.startswith(got) and got.count(b"\n") - 1 == done[name][0], name
@@ -408,3 +417,14 @@ def test_a_writer_that_cannot_start_leaves_the_conversion_to_close(tmp_path, mon
     assert "CSV files rebuilt from the spools" in capsys.readouterr().err
     for name, expected in expected_files(master, snaps).items():
         assert (tmp_path / "run" / name).read_bytes() == expected, name
+
+
+def test_recover_reads_an_older_spool_without_row_count_and_drops_a_torn_row(tmp_path):
+    header = tmp_path / "signals.f64.json"
+    header.write_text(json.dumps({"format": "cosim-spool-f64", "csv": "signals.csv",
+                                  "columns": ["time", "a"], "byteorder": sys.byteorder}))
+    rows = np.array([[0.0, 1.5], [0.1, -2.25]])
+    (tmp_path / "signals.f64").write_bytes(rows.tobytes() + b"\x01" * 5)
+    done = [(p.name, n, cut) for p, n, cut in recover(tmp_path)]
+    assert done == [("signals.csv", 2, 5)]
+    assert (tmp_path / "signals.csv").read_text() == "time,a\n0.0,1.5\n0.1,-2.25\n"

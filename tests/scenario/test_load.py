@@ -68,7 +68,7 @@ def lane_change(tmp_path: Path) -> Path:
 def test_fields_are_read_as_typed_models(lane_change: Path) -> None:
     s = load_scenario(lane_change)
     assert (s.name, s.description, s.duration, s.tick, s.start_time) == (
-        "lane_change", "double lane change with wind", 20.0, 0.01, 0.0)
+        "lane_change", "double lane change with wind", 20.0, 0.01, None)  # None: the FMU's
     assert s.components["vehicle"] == FmuSpec(fmu="Vehicle8DOF",
                                               parameters={"vx0": 10.0, "m": 1500.0},
                                               uncertainty={"m": {"scale": 1.3},

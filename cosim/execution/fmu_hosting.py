@@ -1,0 +1,97 @@
+"""How a run hosts its local FMUs, and the settings it takes from them.
+
+Each local FMU component is hosted in the master's process (`FmuComponent`)
+or, with `isolate: true`, in a local process of its own (`IsolatedFmu`); a
+second instance of an FMU that declares canBeInstantiatedOnlyOncePerProcess
+is isolated automatically. `log: true` (or `--fmu-log` for all) sends an
+FMU's messages to run.log. The start time is the scenario's, else the FMUs'
+DefaultExperiment startTime, else 0; every component's call deadline is its
+`deadline:`, else the run's `--deadline`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from cosim.errors import UserError
+
+RUN_LOG = "run.log"
+
+
+def start_time(scenario: Any, plans: list[Any]) -> float:
+    """The run's start time: the scenario's, else the FMUs' DefaultExperiment, else 0.
+
+    Args:
+        scenario: the validated scenario.
+        plans: the FMU plans (`cosim.execution.prepare.FmuPlan`) of every FMU component.
+    Raises:
+        UserError when the scenario sets none and two FMUs disagree.
+    """
+    if scenario.start_time is not None:
+        return float(scenario.start_time)
+    found: dict[str, float] = {}
+    for plan in plans:
+        experiment = getattr(plan.interface.model_description, "defaultExperiment", None)
+        if experiment is not None and experiment.startTime is not None:
+            found[plan.name] = float(experiment.startTime)
+    if len(set(found.values())) > 1:
+        listed = ", ".join(f"{n}: {t:g} s" for n, t in found.items())
+        raise UserError(f"{scenario.where(('start_time',))}: the FMUs' DefaultExperiment "
+                        f"start times differ ({listed}); set start_time in the scenario")
+    return next(iter(found.values()), 0.0)
+
+
+def deadlines(scenario: Any, names: list[str], default_s: float) -> dict[str, float]:
+    """Component -> call deadline in seconds (`deadline:` in the YAML, else `default_s`)."""
+    specs = {**scenario.components, **scenario.sources}
+    return {n: float(getattr(specs.get(n), "deadline", None) or default_s) for n in names}
+
+
+def host_fmus(scenario: Any, plans: list[Any], out: Path, deadline_of: dict[str, float],
+              fmu_log: bool) -> dict[str, Any]:
+    """Host the local FMU components; name -> HostedComponent (isolated ones start now).
+
+    Args:
+        scenario: the validated scenario.
+        plans: the local FMU plans.
+        out: the run folder (for run.log).
+        deadline_of: component -> call deadline (see `deadlines`).
+        fmu_log: `--fmu-log`: every FMU logs to run.log.
+    """
+    from cosim.fmu.host import FmuComponent
+
+    hosted: dict[str, Any] = {}
+    loaded: set[str] = set()  # model identifiers hosted in this process
+    for plan in plans:
+        spec = scenario.components[plan.name]
+        log_file = out / RUN_LOG if (spec.log or fmu_log) else None
+        if spec.isolate or _only_once(plan) and _identifier(plan) in loaded:
+            from cosim.fmu.isolated import IsolatedFmu
+
+            hosted[plan.name] = IsolatedFmu(plan.name, plan.path, plan.interface,
+                                            dict(spec.variables), plan.parameters,
+                                            plan.period_ticks, deadline_of[plan.name], log_file)
+            continue
+        loaded.add(_identifier(plan))
+        hosted[plan.name] = FmuComponent(plan.name, plan.path, plan.interface,
+                                         plan.parameters, plan.period_ticks, log_file)
+    return hosted
+
+
+def _identifier(plan: Any) -> str:
+    return str(getattr(plan.interface, "model_identifier", None) or plan.path.stem)
+
+
+def _only_once(plan: Any) -> bool:
+    """Whether the FMU declares canBeInstantiatedOnlyOncePerProcess."""
+    cs = getattr(plan.interface.model_description, "coSimulation", None)
+    return bool(getattr(cs, "canBeInstantiatedOnlyOncePerProcess", False))
+
+
+def is_local_call(hosted: Any) -> bool:
+    """Whether a hosted component's calls run in the master's process (the supervisor's watch)."""
+    from cosim.fmu.host import FmuComponent
+    from cosim.transport.inproc import InprocComponent
+
+    return isinstance(hosted, (FmuComponent, InprocComponent))

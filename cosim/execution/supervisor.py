@@ -1,0 +1,301 @@
+"""The supervisor of `cosim run`: a parent process that outlives the master.
+
+Native FMU code runs inside the master's process: a segfault, `abort()` or
+`exit()` there kills the master, a doStep that never returns hangs it. So
+`cosim run` forks once, early (before any thread or component process exists,
+about a millisecond): the child is the master and runs the command; the
+parent, this module, only waits. They share one anonymous memory page
+(`ControlPage`): the master writes there its run folder, the CSV writer's
+pid, a phase, and before every component call the breadcrumb of
+`cosim.engine.master` (component, call, tick; a memory write, nearly free).
+
+Every `POLL_S` and on every signal the supervisor reads the breadcrumb:
+
+- the master dies (a signal, or an exit before its final manifest): the
+  supervisor completes the run folder (`cosim.results.salvage`: every CSV from
+  the spools, whose rows the kernel already holds, and the manifest with status
+  failed and the cause), ends what the master left running, prints one line
+  naming the component, tick, time and signal, and exits 1;
+- a call of a local component (an FMU in the master, an in-process Python
+  component) lasts longer than its deadline: the supervisor kills the master
+  and reports the same way (components in other processes have their own
+  deadline in the master; the supervisor gives them a margin more);
+- Ctrl-C, SIGTERM and SIGHUP are forwarded to the master (which has its own
+  process group, so it gets each one once); if it is inside a call that does
+  not return within `INTERRUPT_GRACE_S` (native code ignores signals), it is
+  killed and the run folder completed as interrupted.
+
+Otherwise it exits with the master's status. Standard library only, plus the
+salvage, loaded only when needed.
+"""
+
+from __future__ import annotations
+
+import json
+import mmap
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+PAGE_BYTES = 4096
+CRUMB, PHASE, FOLDER_LEN, WRITER_PID = 0, 1, 2, 3  # int64 words of the page
+FOLDER_AT = 64  # the run folder's path, UTF-8, from this byte
+STARTING, RUNNING, DONE = 0, 1, 2  # phases: before the folder, folder announced, final manifest
+POLL_S = 0.05
+INTERRUPT_GRACE_S = 0.5
+REMOTE_MARGIN_S = 2.0  # beyond a proxied component's own deadline
+LEFTOVER_GRACE_S = 1.0
+FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+class ControlPage:
+    """The page the master shares with its supervisor (anonymous, MAP_SHARED, kept over fork)."""
+
+    def __init__(self) -> None:
+        self.map = mmap.mmap(-1, PAGE_BYTES)
+        self.words = memoryview(self.map).cast("q")
+
+    @property
+    def crumb(self) -> memoryview:
+        """The int64 words; item 0 is the master's breadcrumb."""
+        return self.words
+
+    def announce(self, folder: Path) -> None:
+        """The run folder exists (phase running)."""
+        data = str(Path(folder).resolve()).encode("utf-8")[:PAGE_BYTES - FOLDER_AT]
+        self.map[FOLDER_AT:FOLDER_AT + len(data)] = data
+        self.words[FOLDER_LEN] = len(data)
+        self.words[PHASE] = RUNNING
+
+    def note_writer(self, pid: int) -> None:
+        """The CSV writer process started (ended by the supervisor if the master dies)."""
+        self.words[WRITER_PID] = pid
+
+    def done(self) -> None:
+        """The final manifest is written: from here, the master's death loses nothing."""
+        self.words[PHASE] = DONE
+
+    def folder(self) -> Path | None:
+        """The announced run folder, or None."""
+        size = self.words[FOLDER_LEN]
+        return Path(self.map[FOLDER_AT:FOLDER_AT + size].decode("utf-8")) if size else None
+
+
+_page: ControlPage | None = None  # in the master: the page its supervisor reads
+
+
+def current() -> ControlPage | None:
+    """The control page when this process is a supervised master, else None."""
+    return _page
+
+
+def fork_supervisor() -> int | None:
+    """Fork the master off; None in the master, its final exit status in the supervisor.
+
+    Call it before any thread or child process exists.
+    """
+    global _page
+    page = ControlPage()
+    watched = {*FORWARDED, signal.SIGCHLD}
+    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, watched)
+    pid = os.fork()
+    if pid == 0:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        os.setpgid(0, 0)  # a terminal's Ctrl-C reaches the supervisor, which forwards it once
+        _page = page
+        return None
+    try:
+        return Supervisor(pid, page).run()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+
+
+class Supervisor:
+    """Waits for the master `pid`, watching its breadcrumb on `page` (see the module)."""
+
+    def __init__(self, pid: int, page: ControlPage) -> None:
+        self.pid, self.page = pid, page
+        self.word, self.since = 0, time.monotonic()  # the breadcrumb and when it last changed
+        self.interrupted: tuple[float, str] | None = None  # (when, by what)
+        self._table: dict[str, Any] | None = None
+
+    def run(self) -> int:
+        """Supervise until the master ends; the exit status of `cosim run`."""
+        watched = {*FORWARDED, signal.SIGCHLD}
+        while True:
+            info = signal.sigtimedwait(watched, POLL_S)
+            if info is not None and info.si_signo != signal.SIGCHLD:
+                self._forward(info.si_signo)
+            done, status = os.waitpid(self.pid, os.WNOHANG)
+            if done:
+                return self._ended(status)
+            verdict = self._check(time.monotonic())
+            if verdict is not None:
+                os.kill(self.pid, signal.SIGKILL)
+                os.waitpid(self.pid, 0)
+                return self._complete(verdict)
+
+    def _forward(self, signo: int) -> None:
+        if self.interrupted is None:
+            what = ("interrupted by the user (Ctrl-C)" if signo == signal.SIGINT
+                    else f"terminated by {signal.Signals(signo).name}")
+            self.interrupted = (time.monotonic(), what)
+        try:
+            os.kill(self.pid, signo)
+        except ProcessLookupError:
+            pass
+
+    def _check(self, now: float) -> dict[str, Any] | None:
+        """A reason to end the master now (a call past its deadline, a stuck interrupt), or None."""
+        word = self.page.words[CRUMB]
+        if word != self.word:
+            self.word, self.since = word, now
+            return None
+        call = _decode(word)
+        if call is None:
+            return None
+        if self.interrupted is not None:
+            when, what = self.interrupted
+            if self.since <= when and now - when >= INTERRUPT_GRACE_S:
+                return {"kind": "interrupted", "what": what, "call": call}
+        deadline = self._deadline(call[0], call[1])
+        if deadline is not None and now - self.since > deadline:
+            return {"kind": "deadline", "deadline_s": deadline, "call": call}
+        return None
+
+    def _deadline(self, index: int, call: int) -> float | None:
+        """The deadline of a call; None for the stop of a component in another process
+        (its host ends it with its own grace periods and kills)."""
+        from cosim.engine.crumb import CALL_STOP
+
+        table = self._load_table()
+        deadlines, local = table.get("deadlines_s", []), table.get("local", [])
+        if index >= len(deadlines) or (call == CALL_STOP and not local[index]):
+            return None
+        return deadlines[index]
+
+    def _load_table(self) -> dict[str, Any]:
+        """The manifest's "supervision" entry (step order, deadlines), read once it is there."""
+        if self._table is None:
+            folder = self.page.folder()
+            try:
+                manifest = json.loads((folder / "manifest.json").read_text()) if folder else {}
+            except (OSError, ValueError):
+                return {}
+            if "supervision" not in manifest:
+                return {}
+            self._table = dict(manifest["supervision"])
+        return self._table
+
+    def _ended(self, status: int) -> int:
+        """The master ended by itself: its status, or the folder completed after a death."""
+        phase = self.page.words[PHASE]
+        if os.WIFSIGNALED(status):
+            verdict = {"kind": "signal", "signal": signal.Signals(os.WTERMSIG(status)).name}
+        else:
+            code = os.waitstatus_to_exitcode(status)
+            if phase != RUNNING:
+                return code
+            verdict = {"kind": "exit", "exit_code": code}
+        verdict["call"] = _decode(self.page.words[CRUMB])
+        if phase == DONE:
+            _say(f"cosim: the master process was killed by {verdict['signal']} after "
+                 f"its run folder was complete")
+            return 1
+        if phase == STARTING:
+            _say(f"run failed: the master process was killed by {verdict['signal']} "
+                 f"before the run folder was made")
+            return 1
+        return self._complete(verdict)
+
+    def _complete(self, verdict: dict[str, Any]) -> int:
+        """Complete the run folder after the master's death; print one line; status 1."""
+        from cosim.results.salvage import complete_run_folder
+
+        writer = self.page.words[WRITER_PID]
+        if writer > 0:
+            _kill(writer)  # the folder is rebuilt here: its conversion would be wasted
+        folder = self.page.folder()
+        try:
+            message = complete_run_folder(folder, verdict)
+        except Exception as exc:  # noqa: BLE001 - the line must still be printed
+            message = (f"the master process ended ({_what(verdict)}); the run folder "
+                       f"{folder} could not be completed: {exc}")
+        _end_leftovers(folder, self.pid)
+        _say(f"run failed: {message}")
+        return 1
+
+
+def supervision_entry(order: list[str], local: set[str],
+                      deadlines: dict[str, float]) -> dict[str, Any]:
+    """The manifest's "supervision" entry: each component's call deadline, in step order.
+
+    Args:
+        order: the master's step order.
+        local: the components whose calls run in the master's process; the
+            others (Zenoh processes, isolated FMUs) have their own deadline in
+            the master and get `REMOTE_MARGIN_S` more here, as a backstop.
+        deadlines: name -> deadline in seconds.
+    """
+    return {"deadlines_s": [deadlines[n] + (0.0 if n in local else REMOTE_MARGIN_S)
+                            for n in order],
+            "local": [n in local for n in order]}
+
+
+def _decode(word: int) -> tuple[int, int, int] | None:
+    from cosim.engine.crumb import decode_crumb
+
+    return decode_crumb(word)
+
+
+def _what(verdict: dict[str, Any]) -> str:
+    return verdict.get("signal") or f"exit status {verdict.get('exit_code')}"
+
+
+def _end_leftovers(folder: Path | None, master_pid: int) -> None:
+    """End the component processes the manifest lists, if the master's death left them."""
+    try:
+        pids = json.loads((folder / "manifest.json").read_text()).get("pids", {}) if folder else {}
+    except (OSError, ValueError):
+        return
+    alive = [p for p in set(pids.values()) if isinstance(p, int) and p != master_pid]
+    for pid in alive:
+        _signal(pid, signal.SIGTERM)
+    end = time.monotonic() + LEFTOVER_GRACE_S
+    while alive and time.monotonic() < end:
+        alive = [p for p in alive if _exists(p)]
+        time.sleep(0.02)
+    for pid in alive:
+        _kill(pid)
+
+
+def _exists(pid: int) -> bool:
+    try:
+        waited, _ = os.waitpid(pid, os.WNOHANG)  # our child: reap it
+        return waited == 0
+    except ChildProcessError:
+        pass
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[-1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _signal(pid: int, signo: int) -> None:
+    try:
+        os.kill(pid, signo)
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+def _kill(pid: int) -> None:
+    _signal(pid, signal.SIGKILL)
+
+
+def _say(line: str) -> None:
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()

@@ -1,0 +1,283 @@
+"""An FMU in a local process of its own (`isolate: true`), driven over two pipes.
+
+`IsolatedFmu` is the master's HostedComponent: it starts
+`python -m cosim.fmu.isolated` at once (its imports overlap the master's
+start-up) and exchanges fixed binary frames with it; the process hosts the
+FMU through the same `FmuComponent` as the master does in-process, so the
+results are bit-identical. A crash of the FMU (segfault, abort, exit) kills
+only that process: the master reads the end of the pipe, takes its exit
+status and fails the run with the usual one-line message; a call that does
+not return within the deadline gets the process killed and the same kind of
+message. The process dies with the master (PR_SET_PDEATHSIG) and ignores
+Ctrl-C (the master decides).
+
+Why pipes and not Zenoh: the process is always local and private to this
+master (no key space, no credentials, nothing on the network); pipes work
+under `--transport inproc` too; and one exchange costs a pipe round trip
+(tens of microseconds) rather than a Zenoh one (about 100 us, DESIGN.md).
+
+Frames, both ways: 4-byte length, 1-byte kind, payload. Master to process:
+b"C" config (JSON, once), b"I" t0 + inputs, b"S" tick, t + inputs, b"Q" stop.
+Process to master: b"R" ready, b"O" outputs, b"T" outputs + reason (the FMU
+asked to terminate), b"M" metrics (JSON), b"E" failure (JSON: tick, time, cause).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import select
+import signal
+import struct
+import subprocess
+import sys
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from cosim.component import Port, Value
+from cosim.errors import ComponentFailure, StopRequested
+
+LENGTH = struct.Struct("=I")
+STEP = struct.Struct("=qd")
+READY_TIMEOUT_S = 60.0  # process start-up (imports, unzipping): not an FMI call
+STOP_WAIT_S = 2.0
+POLL_SLICE_MS = 100
+
+
+class IsolatedFmu:
+    """HostedComponent of an FMU in its own local process (see the module).
+
+    Args:
+        name: component name in the scenario.
+        path: the .fmu file.
+        interface: its `cosim.fmu.interface.FmuInterface` (ports known before start).
+        variables: the scenario's name map (canonical -> FMU variable).
+        parameters: canonical parameter values, already checked.
+        period_ticks: master ticks between two steps.
+        deadline_s: seconds an FMI call (one exchange) may take.
+        log_file: run.log, or None (see `FmuComponent`).
+    """
+
+    direct_feedthrough = False
+
+    def __init__(self, name: str, path: str | Path, interface: Any, variables: Mapping[str, str],
+                 parameters: Mapping[str, float], period_ticks: int, deadline_s: float,
+                 log_file: str | Path | None = None) -> None:
+        self.name, self.interface, self.period_ticks = name, interface, int(period_ticks)
+        self.inputs: tuple[Port, ...] = tuple(interface.inputs)
+        self.outputs: tuple[Port, ...] = tuple(interface.outputs)
+        self.deadline_s = float(deadline_s)
+        self._in_names = [p.name for p in self.inputs]
+        self._out_names = [p.name for p in self.outputs]
+        self._out = struct.Struct(f"={len(self._out_names)}d")
+        self._step_frame = struct.Struct(f"=Icqd{len(self._in_names)}d")
+        self._ready = False
+        self._busy = False  # a request is out and its reply not read
+        config = {"name": name, "path": str(path), "variables": dict(variables),
+                  "parameters": {k: float(v) for k, v in parameters.items()},
+                  "period_ticks": self.period_ticks,
+                  "log_file": str(log_file) if log_file is not None else None}
+        self._spawn(config)
+
+    def _spawn(self, config: dict[str, Any]) -> None:
+        child_rx, master_tx = os.pipe()
+        master_rx, child_tx = os.pipe()
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "cosim.fmu.isolated", str(child_rx), str(child_tx)],
+            pass_fds=(child_rx, child_tx), stdin=subprocess.DEVNULL)
+        os.close(child_rx)
+        os.close(child_tx)
+        self.pid = self.process.pid
+        self._tx, self._rx = master_tx, master_rx
+        self._poll = select.poll()
+        self._poll.register(master_rx, select.POLLIN)
+        _send(self._tx, b"C", json.dumps(config).encode())
+
+    def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Wait for the process, then initialize the FMU there at t0."""
+        if not self._ready:
+            self._receive("R", None, t0, READY_TIMEOUT_S)
+            self._ready = True
+        values = [inputs[n] for n in self._in_names]
+        _send(self._tx, b"I", struct.pack(f"=d{len(values)}d", t0, *values))
+        return self._outputs(self._receive("start", None, t0, self.deadline_s), None, t0)
+
+    def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """One doStep in the process: a request frame, a reply frame."""
+        frame = self._step_frame
+        os.write(self._tx, frame.pack(frame.size - 4, b"S", tick, t,
+                                      *[inputs[n] for n in self._in_names]))
+        self._busy = True
+        return self._outputs(self._receive("step", tick, t, self.deadline_s), tick, t)
+
+    def stop(self) -> dict[str, float]:
+        """Stop the FMU in the process and let it exit (killed if it is stuck or busy)."""
+        metrics: dict[str, float] = {}
+        try:
+            if self.process.poll() is None and self._ready and not self._busy:
+                _send(self._tx, b"Q", b"")
+                kind, payload = self._receive("stop", None, 0.0, STOP_WAIT_S, raw=True)
+                metrics = json.loads(payload) if kind == b"M" else {}
+        finally:
+            self._end_process()
+        return metrics
+
+    def _outputs(self, reply: tuple[bytes, bytes], tick: int | None, t: float) -> dict[str, Value]:
+        kind, payload = reply
+        values = dict(zip(self._out_names, self._out.unpack_from(payload)))
+        if kind == b"T":
+            reason = payload[self._out.size:].decode("utf-8", "replace")
+            raise StopRequested(self.name, tick or 0, t, values, reason)
+        return values
+
+    def _receive(self, call: str, tick: int | None, t: float, timeout_s: float,
+                 raw: bool = False) -> tuple[bytes, bytes]:
+        """The next frame; a failure, a death or a timeout of the process raises ComponentFailure."""
+        if not self._wait_readable(timeout_s):
+            self._end_process()
+            raise ComponentFailure(self.name, tick, t, f"no return from its {call} within the "
+                                   f"deadline of {timeout_s:g} s (its isolated process was "
+                                   f"ended)", {"kind": "deadline", "deadline_s": timeout_s})
+        frame = _read_frame(self._rx)
+        if frame is None:
+            raise self._died(call, tick, t)
+        self._busy = False
+        kind, payload = frame
+        if kind == b"E":
+            error = json.loads(payload)
+            raise ComponentFailure(self.name, error["tick"], error["time"], error["cause"],
+                                   error.get("details"))
+        if raw or kind in (b"O", b"T", b"R"):
+            return kind, payload
+        raise ComponentFailure(self.name, tick, t, f"unexpected reply {kind!r} from its "
+                               f"isolated process")
+
+    def _wait_readable(self, timeout_s: float) -> bool:
+        """Whether a reply came within `timeout_s`; waits in short slices, so that a
+        Ctrl-C received by another thread (Zenoh's) is raised here without delay."""
+        if self._poll.poll(0.0) or self._poll.poll(POLL_SLICE_MS):
+            return True
+        end = time.monotonic() + timeout_s
+        while (left := end - time.monotonic()) > 0:
+            if self._poll.poll(min(left * 1000.0, POLL_SLICE_MS)):
+                return True
+        return False
+
+    def _died(self, call: str, tick: int | None, t: float) -> ComponentFailure:
+        code = self.process.wait()
+        self._end_process()
+        if code < 0:
+            name = signal.Signals(-code).name
+            return ComponentFailure(self.name, tick, t, f"its isolated process was killed by "
+                                    f"{name} in its {call}", {"kind": "signal", "signal": name})
+        return ComponentFailure(self.name, tick, t, f"its isolated process exited with status "
+                                f"{code} in its {call}", {"kind": "exit", "exit_code": code})
+
+    def _end_process(self) -> None:
+        """Kill the process if it still runs, reap it, close the pipes (safe to call twice)."""
+        if self.process.poll() is None:
+            try:
+                self.process.wait(timeout=0 if self._busy else STOP_WAIT_S)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+        for fd in (self._tx, self._rx):
+            if fd >= 0:
+                os.close(fd)
+        self._tx = self._rx = -1
+
+
+def _send(fd: int, kind: bytes, payload: bytes) -> None:
+    data = LENGTH.pack(len(payload) + 1) + kind + payload
+    while data:
+        data = data[os.write(fd, data):]
+
+
+def _read_exactly(fd: int, size: int) -> bytes | None:
+    chunks, left = [], size
+    while left:
+        chunk = os.read(fd, left)
+        if not chunk:
+            return None
+        chunks.append(chunk)
+        left -= len(chunk)
+    return b"".join(chunks)
+
+
+def _read_frame(fd: int) -> tuple[bytes, bytes] | None:
+    """(kind, payload) of the next frame, or None at the end of the pipe."""
+    head = _read_exactly(fd, LENGTH.size)
+    if head is None:
+        return None
+    body = _read_exactly(fd, LENGTH.unpack(head)[0])
+    return None if body is None else (body[:1], body[1:])
+
+
+# ---- the process side -------------------------------------------------------------------
+
+def _die_with_parent() -> None:
+    """Linux: get SIGKILL when the master dies (the FMU may be stuck in native code)."""
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+def serve(rx: int, tx: int) -> int:
+    """Host one FMU for the master at the other end of the pipes; the exit status."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent()
+    frame = _read_frame(rx)
+    if frame is None or frame[0] != b"C":
+        return 2
+    config = json.loads(frame[1])
+    from cosim.fmu.host import FmuComponent
+    from cosim.fmu.interface import describe_fmu
+
+    interface = describe_fmu(Path(config["path"]), config["variables"])
+    fmu = FmuComponent(config["name"], config["path"], interface, config["parameters"],
+                       config["period_ticks"], config["log_file"])
+    _send(tx, b"R", b"")
+    return _loop(fmu, rx, tx)
+
+
+def _loop(fmu: Any, rx: int, tx: int) -> int:
+    n_in = len(fmu.inputs)
+    ins = [p.name for p in fmu.inputs]
+    outs = [p.name for p in fmu.outputs]
+    step_in = struct.Struct(f"=qd{n_in}d")
+    reply = struct.Struct(f"=Ic{len(outs)}d")
+    while (frame := _read_frame(rx)) is not None:
+        kind, payload = frame
+        tick, t = None, 0.0
+        try:
+            if kind == b"S":
+                tick, t, *values = step_in.unpack(payload)
+                out = fmu.step(tick, t, dict(zip(ins, values)))
+            elif kind == b"I":
+                t, *values = struct.unpack(f"=d{n_in}d", payload)
+                out = fmu.start(t, dict(zip(ins, values)))
+            else:  # b"Q"
+                _send(tx, b"M", json.dumps(fmu.stop()).encode())
+                return 0
+        except StopRequested as request:
+            data = reply.pack(reply.size - 4 + len(request.reason.encode()), b"T",
+                              *[request.outputs[n] for n in outs])
+            os.write(tx, data + request.reason.encode())
+            continue
+        except Exception as exc:  # noqa: BLE001 - every failure goes back to the master
+            error = exc if isinstance(exc, ComponentFailure) else None
+            _send(tx, b"E", json.dumps({"tick": error.tick if error else tick,
+                                        "time": error.time if error else t,
+                                        "cause": error.cause if error else repr(exc),
+                                        "details": error.details if error else {}}).encode())
+            continue
+        os.write(tx, reply.pack(reply.size - 4, b"O", *[out[n] for n in outs]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(serve(int(sys.argv[1]), int(sys.argv[2])))

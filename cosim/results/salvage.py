@@ -1,0 +1,108 @@
+"""Completing a run folder after the master process died, from outside it.
+
+The recorder puts every completed tick into the kernel as the tick completes
+(`cosim.results.recorder`: mmap'd spools with a row count), and the manifest
+of a running run says what ran. `complete_run_folder`, called by the run's
+supervisor (`cosim.execution.supervisor`) once the master is dead, turns the
+spools into the CSV files (every complete row, as `cosim recover` does), and
+rewrites the manifest with status "failed", the error and its cause: how the
+master ended (signal, exit status, deadline, interrupt), the component and
+call under way, the tick and the time.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+from pathlib import Path
+from typing import Any
+
+from cosim.engine.crumb import CALL_START, CALL_STOP, CALLS
+from cosim.errors import ComponentFailure, UserError
+from cosim.results.recorder import SIGNALS_FILE, read_signals, write_json
+from cosim.results.recover import recover
+
+
+def complete_run_folder(folder: Path | None, verdict: dict[str, Any]) -> str:
+    """Rebuild the CSV files and write the failed manifest; the one-line error.
+
+    Args:
+        folder: the run folder (its manifest written before tick 0).
+        verdict: how the master ended: "kind" ("signal", "exit", "deadline" or
+            "interrupted") with "signal", "exit_code", "deadline_s" or "what",
+            and "call": (component index in step order, call kind, tick) or None.
+    Returns:
+        the error, naming the component, the tick, the time and the cause.
+    """
+    if folder is None:
+        raise ValueError("no run folder")
+    manifest = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
+    try:
+        recover(folder)
+    except UserError:
+        pass  # no spool: nothing recorded yet, or already converted
+    rows = _rows(folder / SIGNALS_FILE)
+    scenario = manifest.get("scenario", {})
+    t0 = float(manifest.get("start_time", scenario.get("start_time") or 0.0))
+    tick = float(scenario.get("tick", 0.0))
+    cause = _cause(verdict, list(manifest.get("step_order", [])), rows, t0, tick)
+    message = _message(cause)
+    manifest.update({"status": "failed", "error": message, "cause": cause,
+                     "ticks": max(rows - 1, 0), "sim_time_s": max(rows - 1, 0) * tick,
+                     "failed_utc": datetime.datetime.now(datetime.timezone.utc)
+                     .isoformat(timespec="seconds"),
+                     "completed_by": "supervisor"})
+    write_json(folder / "manifest.json", manifest)
+    if not (folder / "metrics.json").exists():
+        write_json(folder / "metrics.json", {})
+    return message
+
+
+def _rows(path: Path) -> int:
+    try:
+        return len(read_signals(path)[1])
+    except (OSError, ValueError):
+        return 0
+
+
+def _cause(verdict: dict[str, Any], order: list[str], rows: int, t0: float,
+           tick: float) -> dict[str, Any]:
+    """The manifest's "cause": the verdict with names and times instead of indexes."""
+    cause = {k: v for k, v in verdict.items() if k != "call"}
+    call = verdict.get("call")
+    if call is not None and call[0] < len(order):
+        index, kind, k = call
+        cause.update(component=order[index], call=CALLS.get(kind, "call"),
+                     tick=None if kind == CALL_START else k, time=t0 + k * tick)
+    else:
+        last = max(rows - 1, 0)
+        cause.update(component=None, call=None, tick=last, time=t0 + last * tick)
+    return cause
+
+
+def _message(cause: dict[str, Any]) -> str:
+    """One line: what the master was doing and how it ended."""
+    kind, call = cause["kind"], cause.get("call")
+    if kind == "signal":
+        ended = f"the master process was killed by {cause['signal']}"
+    elif kind == "exit":
+        ended = f"the master process exited with status {cause['exit_code']}"
+    elif kind == "deadline":
+        ended = (f"no return from its {call} within the deadline of {cause['deadline_s']:g} s "
+                 f"(the master process was ended)")
+    else:
+        ended = f"{cause['what']}"
+    if cause["component"] is None:
+        return f"{ended} after tick {cause['tick']} (t={cause['time']:.10g} s), outside any component call"
+    if kind == "interrupted":
+        return (f"{ended}: component {cause['component']!r} did not return from its {call} at "
+                f"{_when(cause)} (t={cause['time']:.10g} s); the master process was ended")
+    if kind != "deadline":
+        ended += f" in its {call}"
+    if call == CALLS[CALL_STOP]:
+        ended += f" after tick {cause['tick']}"
+    return str(ComponentFailure(cause["component"], cause["tick"], cause["time"], ended))
+
+
+def _when(cause: dict[str, Any]) -> str:
+    return "initialization" if cause["tick"] is None else f"tick {cause['tick']}"

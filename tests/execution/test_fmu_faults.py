@@ -1,0 +1,184 @@
+"""`cosim run` with a plant that crashes, exits, hangs, fails or asks to stop, in the
+master's process (the supervisor completes the run) and isolated (`isolate: true`),
+over the inproc and zenoh transports: exit code, the one-line message, one row
+per completed tick, the manifest's status and cause, no process left behind.
+
+tests/fmus/Faulty fires its fault in the step that ends at fault_time = 0.2 s,
+tick 20: ticks 0..19 are complete, so signals.csv holds 20 rows.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from cosim.results.recorder import read_signals
+from tests.helpers.paths import REPO_ROOT
+
+COSIM = Path(sys.executable).with_name("cosim")
+SCENARIO = """\
+name: faulty
+duration: 0.4
+tick: 0.01
+components:
+  plant:
+    fmu: {fmu}
+    parameters: {{fault_mode: {mode}, fault_time: 0.2}}
+    isolate: {isolate}
+    deadline: 1.0
+  ctl:
+    python: tests.helpers.components:PController
+sources:
+  ref: {{kind: constant, value: 1.0}}
+connections:
+  - plant.u_echo -> ctl.y
+  - ref.value -> ctl.ref
+  - ctl.u -> plant.u
+"""
+FAULT_TICK, FAULT_T = 20, 0.2
+ABORT, EXIT, HANG, FATAL, ERROR, TERMINATE = 2, 3, 4, 5, 6, 7
+
+
+def run_cosim(tmp_path: Path, text: str, *options: str, interrupt_after: float | None = None):
+    """`cosim run` in its own session; (process result, run folder, processes left)."""
+    scenario, out = tmp_path / "s.yaml", tmp_path / "run"
+    scenario.write_text(text)
+    env = {**os.environ, "PYTHONPATH": str(REPO_ROOT)}
+    proc = subprocess.Popen([str(COSIM), "run", str(scenario), "--out", str(out), "--no-figures",
+                             *options], cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    if interrupt_after is not None:
+        _wait_for(lambda: (out / "signals.f64").exists(), 60)
+        time.sleep(interrupt_after)
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C does
+    stdout, stderr = proc.communicate(timeout=120)
+    left = _leftovers(proc.pid, out)
+    return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr), out, left
+
+
+def _wait_for(condition, timeout_s: float) -> None:
+    end = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.02)
+
+
+def _leftovers(session: int, out: Path) -> list[str]:
+    """Processes of the run's session, or listed in its manifest, still alive (after 5 s)."""
+    manifest = json.loads((out / "manifest.json").read_text()) if (out / "manifest.json").exists() else {}
+    pids = {str(p) for p in manifest.get("pids", {}).values()}
+    end = time.monotonic() + 5
+
+    def alive() -> list[str]:
+        found = subprocess.run(["pgrep", "-s", str(session)], capture_output=True,
+                               text=True).stdout.split()
+        return found + [p for p in pids if Path(f"/proc/{p}").exists()
+                        and "Z" not in Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[-1][:3]]
+    while alive() and time.monotonic() < end:
+        time.sleep(0.05)
+    return alive()
+
+
+def _check_failed(done, out: Path, left: list[str], cause: dict, message: str) -> dict:
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith(f"run failed: component 'plant' failed at tick {FAULT_TICK} "
+                           f"(t={FAULT_T:g} s): ") and message in last, last
+    assert len(read_signals(out / "signals.csv")[1]) == FAULT_TICK  # ticks 0..19
+    assert not list(out.glob("*.f64*"))
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "failed" and manifest["ticks"] == FAULT_TICK - 1
+    assert last == f"run failed: {manifest['error']}"
+    assert {k: manifest["cause"][k] for k in cause} == cause
+    assert (manifest["cause"]["component"], manifest["cause"]["tick"],
+            manifest["cause"]["time"]) == ("plant", FAULT_TICK, FAULT_T)
+    assert left == []
+    return manifest
+
+
+CASES = [  # mode, transports, expected cause, one-line message (in-process; isolated)
+    (ABORT, ("inproc", "zenoh"), {"kind": "signal", "signal": "SIGABRT"},
+     ("the master process was killed by SIGABRT in its step",
+      "its isolated process was killed by SIGABRT in its step")),
+    (EXIT, ("inproc",), {"kind": "exit", "exit_code": 3},
+     ("the master process exited with status 3 in its step",
+      "its isolated process exited with status 3 in its step")),
+    (HANG, ("inproc", "zenoh"), {"kind": "deadline", "deadline_s": 1.0},
+     ("no return from its step within the deadline of 1 s (the master process was ended)",
+      "no return from its step within the deadline of 1 s (its isolated process was ended)")),
+    (FATAL, ("inproc",), {"kind": "fmi_status", "status": "Fatal"},
+     ("fmi2DoStep failed with status 4 (fatal)", "fmi2DoStep failed with status 4 (fatal)")),
+    (ERROR, ("inproc",), {"kind": "fmi_status", "status": "Error"},
+     ("Faulty: injected error in the step from t = 0.19 to 0.2",) * 2),
+]
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("isolate", [False, True], ids=["in-process", "isolated"])
+@pytest.mark.parametrize("mode, transport, cause, messages", [
+    pytest.param(m, tr, c, msg, id=f"mode{m}-{tr}") for m, trs, c, msg in CASES for tr in trs])
+def test_a_faulty_plant_fails_the_run_with_every_completed_tick(
+        tmp_path, faulty_fmus, mode, transport, cause, messages, isolate):
+    text = SCENARIO.format(fmu=faulty_fmus["Faulty", 2], mode=mode, isolate=str(isolate).lower())
+    done, out, left = run_cosim(tmp_path, text, "--transport", transport)
+    manifest = _check_failed(done, out, left, cause, messages[isolate])
+    assert manifest.get("completed_by") == ("supervisor" if not isolate and mode in
+                                            (ABORT, EXIT, HANG) else None)
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("version, isolate, transport", [
+    (2, False, "inproc"), (3, False, "zenoh"), (2, True, "zenoh"), (3, True, "inproc")])
+def test_a_termination_request_ends_the_run_ok_with_the_step_that_asked(
+        tmp_path, faulty_fmus, version, isolate, transport):
+    text = SCENARIO.format(fmu=faulty_fmus["Faulty", version], mode=TERMINATE,
+                           isolate=str(isolate).lower())
+    done, out, left = run_cosim(tmp_path, text, "--transport", transport)
+    assert done.returncode == 0, done.stderr
+    assert (f"stopped by component 'plant' at tick {FAULT_TICK} (t={FAULT_T:g} s): the FMU "
+            f"asked to terminate the simulation") in done.stdout
+    names, data = read_signals(out / "signals.csv")
+    assert len(data) == FAULT_TICK + 1 and data[-1, names.index("plant.y")] == FAULT_T
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "ok" and manifest["ticks"] == FAULT_TICK
+    assert {k: manifest["stopped_by"][k] for k in ("component", "tick", "time")} == {
+        "component": "plant", "tick": FAULT_TICK, "time": FAULT_T}
+    assert left == []
+
+
+@pytest.mark.timeout(120)
+def test_a_segfault_in_the_master_is_reported_by_the_supervisor(tmp_path):
+    text = ("name: crash\nduration: 0.4\ntick: 0.01\ncomponents:\n"
+            "  plant:\n    python: tests.helpers.components:Segfault\n"
+            "    parameters: {at: 0.2}\n"
+            "sources:\n  ref: {kind: constant, value: 1.0}\n"
+            "connections:\n  - ref.value -> plant.u\n")
+    done, out, left = run_cosim(tmp_path, text, "--transport", "inproc")
+    _check_failed(done, out, left, {"kind": "signal", "signal": "SIGSEGV", "call": "step"},
+                  "the master process was killed by SIGSEGV in its step")
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("isolate", [False, True], ids=["in-process", "isolated"])
+def test_ctrl_c_ends_a_run_hung_in_an_fmu_call(tmp_path, faulty_fmus, isolate):
+    text = SCENARIO.format(fmu=faulty_fmus["Faulty", 2], mode=HANG, isolate=str(isolate).lower())
+    text = text.replace("deadline: 1.0", "deadline: 600")
+    done, out, left = run_cosim(tmp_path, text, "--transport", "inproc", interrupt_after=1.0)
+    assert done.returncode == 1, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("run failed: interrupted by the user (Ctrl-C)"), last
+    assert len(read_signals(out / "signals.csv")[1]) == FAULT_TICK
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "failed" and last == f"run failed: {manifest['error']}"
+    if not isolate:  # the supervisor had to end the master
+        assert "component 'plant' did not return from its step at tick 20" in last
+        assert manifest["cause"]["kind"] == "interrupted"
+    assert left == []
