@@ -116,6 +116,8 @@ class Connection(BaseModel):
     Attributes:
         src, dst: "component" or "component.port" (YAML keys `from` and `to`).
         delay: ticks of delay on this edge (1 breaks a feedback loop).
+        scale, offset: a linear transformation, the input reads scale * x + offset
+            (each applied only where given; scalar signals, a.x -> b.y form only).
     """
 
     model_config = ConfigDict(extra="forbid", validate_by_name=True, validate_by_alias=True,
@@ -123,6 +125,8 @@ class Connection(BaseModel):
     src: str = Field(alias="from", pattern=ENDPOINT)
     dst: str = Field(alias="to", pattern=ENDPOINT)
     delay: int = Field(0, ge=0)
+    scale: FiniteFloat | None = None
+    offset: FiniteFloat | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -134,6 +138,9 @@ class Connection(BaseModel):
         if (self.src_port is None) != (self.dst_port is None):
             raise ValueError(f"connection {self.src} -> {self.dst}: either both sides name a "
                              "port (a.x -> b.y) or neither (a -> b)")
+        if self.src_port is None and (self.scale is not None or self.offset is not None):
+            raise ValueError(f"connection {self.src} -> {self.dst}: scale and offset need "
+                             "the a.x -> b.y form")
         return self
 
     @property
@@ -204,6 +211,9 @@ class Scenario(BaseModel):
     duration: PositiveFloat
     tick: PositiveFloat
     start_time: FiniteFloat = 0.0
+    # an .ssp whose FMU components and connections the loader merges in (cosim.scenario.ssp);
+    # None once loaded, so that a loaded scenario's dump stands on its own
+    system: str | None = None
     components: dict[str, ComponentSpec] = Field(min_length=1)
     sources: dict[str, SourceSpec] = {}
     connections: list[ConnectionEntry] = []
