@@ -7,8 +7,9 @@ variable of its FMU with the right causality and unit, parameter bindings
 (`cosim.scenario.ssp_params`) name parameters. Each problem names the file in
 the package, the line and the XML element. What the platform cannot honour
 (nested systems and SSP components, signal dictionaries, Model Exchange or
-scheduled-execution components, non-linear mappings, unit conversions, system
-connectors driven from outside) is refused with a one-line reason.
+scheduled-execution components, non-linear mappings, unit conversions, array
+slices) is refused with a one-line reason. Connections to the system's own
+connectors are its boundary and are not imported: a YAML drives those inputs.
 
 `system_document` maps the result onto the scenario model: each ssd:Component
 becomes `components.<name>: {fmu: <extracted file>, parameters: ...}`, each
@@ -257,9 +258,11 @@ def _connection(package: SspPackage, member: str, element: Any,
                       "supported")
         return None
     if any(e is None for e, _ in ends):
-        package.error(member, element, what, "connections to the system's own connectors are "
-                      "not supported: connect the components directly (in a scenario YAML, "
-                      "drive the component input from a source)")
+        # the system's own connectors are its boundary: nothing outside drives them in a
+        # run, so the component end holds its start value unless a scenario YAML drives it
+        for (name, connector), role in zip(ends, ("output", "input")):
+            if name is not None:
+                _end_unit(package, member, element, what, components, name, connector, role)
         return None
     units = [_end_unit(package, member, element, what, components, e, c, role)
              for (e, c), role in zip(ends, ("output", "input"))]

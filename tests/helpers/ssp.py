@@ -101,8 +101,7 @@ def lag_pair_ssd(version: str, *, factor: str = 'factor="1.3" offset="50"',
       </ssd:Component>
     </ssd:Elements>
     <ssd:Connections>
-      <ssd:Connection startElement="lag1" startConnector="y_out" endElement="lag2"
-                      endConnector="u_cmd">{transformation}</ssd:Connection>
+      <ssd:Connection startElement="lag1" startConnector="y_out" endElement="lag2" endConnector="u_cmd">{transformation}</ssd:Connection>
 {extra_connection}
     </ssd:Connections>
   </ssd:System>
