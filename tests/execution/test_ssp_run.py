@@ -12,7 +12,8 @@ from cosim.component import Component, Port
 from cosim.execution.run import run_scenario
 from cosim.execution.ssp_export import export_ssp
 from cosim.scenario.loader import load_scenario, scenario_from_dict
-from tests.helpers.ssp import HEADER, lag_pair_resources, lag_pair_ssd, write_ssp
+from tests.helpers.ssp import (HEADER, lag_connectors, lag_pair_resources, lag_pair_ssd,
+                               write_ssp)
 
 
 class Affine(Component):
@@ -103,16 +104,10 @@ CHAIN = HEADER.format(name="chain", version="1.0") + """
     <ssd:Connectors><ssd:Connector name="u" kind="input"><ssc:Real/></ssd:Connector></ssd:Connectors>
     <ssd:Elements>
       <ssd:Component name="lag2" source="resources/Lag.fmu">
-        <ssd:Connectors>
-          <ssd:Connector name="u_cmd" kind="input"><ssc:Real/></ssd:Connector>
-          <ssd:Connector name="y_out" kind="output"><ssc:Real/></ssd:Connector>
-        </ssd:Connectors>
+        """ + lag_connectors("1.0") + """
       </ssd:Component>
       <ssd:Component name="lag1" source="resources/Lag.fmu">
-        <ssd:Connectors>
-          <ssd:Connector name="u_cmd" kind="input"><ssc:Real/></ssd:Connector>
-          <ssd:Connector name="y_out" kind="output"><ssc:Real/></ssd:Connector>
-        </ssd:Connectors>
+        """ + lag_connectors("1.0") + """
       </ssd:Component>
     </ssd:Elements>
     <ssd:Connections>

@@ -52,6 +52,24 @@ def parameter(name: str, value: float, version: str, prefix: str = "ssv") -> str
             f"</{prefix}:Parameter>")
 
 
+def inline_binding(version: str, name: str, parameters: str) -> str:
+    """An ssd:ParameterBinding holding an inline ssv:ParameterSet (as libcosim's demo)."""
+    return f"""      <ssd:ParameterBinding><ssd:ParameterValues>
+        <ssv:ParameterSet version="{version}" name="{name}"><ssv:Parameters>
+{parameters}
+        </ssv:Parameters></ssv:ParameterSet>
+      </ssd:ParameterValues></ssd:ParameterBinding>"""
+
+
+def lag_connectors(version: str, input_unit: str = "") -> str:
+    """ssd:Connectors of a Lag component: u_cmd (input), y_out (output)."""
+    unit = f' unit="{input_unit}"' if input_unit else ""
+    return f"""<ssd:Connectors>
+          <ssd:Connector name="u_cmd" kind="input"><ssc:{real(version)}{unit}/></ssd:Connector>
+          <ssd:Connector name="y_out" kind="output"><ssc:{real(version)}/></ssd:Connector>
+        </ssd:Connectors>"""
+
+
 def lag_pair_ssd(version: str, *, factor: str = 'factor="1.3" offset="50"',
                  extra_connection: str = "", step: float = 0.01, stop: float = 2.0,
                  lag2_source: str = "resources/Lag.fmu") -> str:
@@ -61,42 +79,22 @@ def lag_pair_ssd(version: str, *, factor: str = 'factor="1.3" offset="50"',
     mapping.ssm from time_constant); lag2 (declared first, as in libcosim's
     demo) gets gain from a system-level binding with hierarchical names.
     """
-    r = real(version)
     transformation = f"<ssc:LinearTransformation {factor}/>" if factor else ""
     return HEADER.format(name="lag pair", version=version) + f"""
   <ssd:System name="lags">
     <ssd:ParameterBindings>
-      <ssd:ParameterBinding>
-        <ssd:ParameterValues>
-          <ssv:ParameterSet version="{version}" name="system">
-            <ssv:Parameters>
-{parameter("lag2.gain", 0.5, version)}
-            </ssv:Parameters>
-          </ssv:ParameterSet>
-        </ssd:ParameterValues>
-      </ssd:ParameterBinding>
+{inline_binding(version, "system", parameter("lag2.gain", 0.5, version))}
     </ssd:ParameterBindings>
     <ssd:Elements>
       <ssd:Component name="lag2" source="{lag2_source}">
-        <ssd:Connectors>
-          <ssd:Connector name="u_cmd" kind="input"><ssc:{r} unit="1"/></ssd:Connector>
-          <ssd:Connector name="y_out" kind="output"><ssc:{r}/></ssd:Connector>
-        </ssd:Connectors>
+        {lag_connectors(version, "1")}
       </ssd:Component>
       <ssd:Component name="lag1" source="resources/Lag.fmu" implementation="CoSimulation">
         <ssd:ParameterBindings>
           <ssd:ParameterBinding source="resources/parameters.ssv">
             <ssd:ParameterMapping source="resources/mapping.ssm"/>
           </ssd:ParameterBinding>
-          <ssd:ParameterBinding>
-            <ssd:ParameterValues>
-              <ssv:ParameterSet version="{version}" name="initial">
-                <ssv:Parameters>
-{parameter("y_init", 1.0, version)}
-                </ssv:Parameters>
-              </ssv:ParameterSet>
-            </ssd:ParameterValues>
-          </ssd:ParameterBinding>
+{inline_binding(version, "initial", parameter("y_init", 1.0, version))}
         </ssd:ParameterBindings>
       </ssd:Component>
     </ssd:Elements>
