@@ -15,7 +15,7 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field,
                       FiniteFloat, NonNegativeFloat, PositiveFloat, PrivateAttr, Tag,
-                      ValidationInfo,
+                      ValidationInfo, model_serializer,
                       model_validator)
 
 from cosim.errors import Problem, ScenarioError
@@ -99,6 +99,15 @@ ComponentSpec = Annotated[
 ]
 
 
+def _drop_none(dumped: Any, keys: tuple[str, ...]) -> Any:
+    """A dump without the optional fields of `keys` that are None (dumps stay as they were)."""
+    if isinstance(dumped, dict):
+        for key in keys:
+            if dumped.get(key, 0) is None:
+                del dumped[key]
+    return dumped
+
+
 def _parse_connection(value: Any) -> Any:
     """Accept the short string forms "a -> b" and "a.x -> b.y"."""
     if not isinstance(value, str):
@@ -142,6 +151,10 @@ class Connection(BaseModel):
             raise ValueError(f"connection {self.src} -> {self.dst}: scale and offset need "
                              "the a.x -> b.y form")
         return self
+
+    @model_serializer(mode="wrap")
+    def _without_unset_transform(self, handler: Any) -> Any:
+        return _drop_none(handler(self), ("scale", "offset"))
 
     @property
     def src_component(self) -> str:
@@ -221,6 +234,10 @@ class Scenario(BaseModel):
     metrics: MetricsSpec = MetricsSpec()
 
     _file: Path | None = PrivateAttr(None)
+
+    @model_serializer(mode="wrap")
+    def _without_merged_system(self, handler: Any) -> Any:
+        return _drop_none(handler(self), ("system",))  # dumps (manifests) stay as before
     _lines: LineMap = PrivateAttr(default_factory=LineMap)
 
     @model_validator(mode="after")
