@@ -1,5 +1,5 @@
 """The `cosim` command line: the typer app, with the subcommands registered from
-one module per group (run; validate, schema, scenarios; build-fmus; recover; mcap;
+one module per group (run; validate, schema, scenarios; export-ssp; build-fmus; recover; mcap;
 worker/workers/router; plot/compare/sweep; watch), and the entry point `main`.
 `-h`/`--help` everywhere, `--version`, and shell completion
 (`cosim --install-completion`, `cosim --show-completion`).
@@ -21,7 +21,8 @@ from collections.abc import Sequence  # noqa: E402
 
 import typer  # noqa: E402
 
-from cosim.cli import analysis, distributed, fmus, foxglove, results, run, scenario, watch  # noqa: E402
+from cosim.cli import (analysis, distributed, fmus, foxglove, results, run, scenario,  # noqa: E402
+                       ssp, watch)
 from cosim.cli.common import EXIT_USER_ERROR, user_error_exit  # noqa: E402
 from cosim.errors import UserError  # noqa: E402
 
@@ -30,7 +31,7 @@ app = typer.Typer(add_completion=True, no_args_is_help=True,
                   help="Co-simulation of closed-loop vehicle control (FMU plants, Python components)."
                        "\n\nStart with: cosim scenarios, then cosim run lane_change."
                        " Shell completion: cosim --install-completion.")
-for _commands in (run, scenario, fmus, results, foxglove, distributed, analysis, watch):
+for _commands in (run, scenario, ssp, fmus, results, foxglove, distributed, analysis, watch):
     _commands.register(app)
 
 

@@ -40,7 +40,7 @@ from cosim.errors import ComponentFailure, StopRequested
 from cosim.engine.crumb import CALL_START, CALL_STEP, CALL_STOP, crumb_code
 from cosim.engine.hosting import HostedComponent
 from cosim.engine.schedule import step_order
-from cosim.engine.signals import ComponentSlots, SignalLayout, build_layout
+from cosim.engine.signals import ComponentSlots, SignalLayout, build_layout, transformed
 from cosim.engine.values import picker, value_problem
 
 
@@ -74,6 +74,7 @@ class _Plan:
         self.in_names = self.slots.in_scalar_names
         self.has_array_inputs = bool(self.slots.in_arrays)
         self.has_array_outputs = bool(self.slots.out_arrays)
+        self.transforms = self.slots.transforms  # empty unless an input edge has scale/offset
 
 
 class Master:
@@ -118,7 +119,9 @@ class Master:
         self._plans = [self._plan(i, name) for i, name in enumerate(self.order)]
         self._scalar_delays = self.layout.scalar_delays
         self._array_delays = self.layout.array_delays
-        self._has_delays = bool(self._scalar_delays or self._array_delays)
+        self._delayed_transforms = self.layout.delayed_transforms
+        self._has_delays = bool(self._scalar_delays or self._array_delays
+                                or self._delayed_transforms)
         self._due = _due_table(self._plans)
         self._started: list[str] = []  # components whose start was called, to stop
 
@@ -192,6 +195,8 @@ class Master:
                  else [p for p in self._plans if k % p.period == 0])
         crumb, tick_bits = self.crumb, k << 20
         for plan in plans:
+            if plan.transforms:
+                _apply_transforms(plan.transforms, values)
             inputs = dict(zip(plan.in_names, plan.pick_inputs(values)))
             if plan.has_array_inputs:
                 self._gather_arrays(plan, inputs)
@@ -220,6 +225,7 @@ class Master:
         values, arrays = self.values, self.arrays
         for src, dst in self._scalar_delays:
             values[dst] = values[src]
+        _apply_transforms(self._delayed_transforms, values)
         for src, dst, size in self._array_delays:
             arrays[dst:dst + size] = arrays[src:src + size]
             self._frozen.pop(dst, None)
@@ -231,6 +237,7 @@ class Master:
 
     def _gather(self, plan: _Plan) -> dict[str, Any]:
         """The inputs of one component as a fresh mapping (floats, read-only arrays)."""
+        _apply_transforms(plan.transforms, self.values)
         inputs: dict[str, Any] = dict(zip(plan.in_names, plan.pick_inputs(self.values)))
         self._gather_arrays(plan, inputs)
         return inputs
@@ -297,6 +304,12 @@ def _due_table(plans: Sequence[_Plan], limit: int = 4096) -> list[list[_Plan]] |
     if cycle > limit:
         return None
     return [[p for p in plans if r % p.period == 0] for r in range(cycle)]
+
+
+def _apply_transforms(transforms: Sequence[tuple], values: list[float]) -> None:
+    """Write each transformed input slot from its source slot (see signals.Transform)."""
+    for src, dst, scale, offset in transforms:
+        values[dst] = transformed(values[src], scale, offset)
 
 
 def _freeze(value: Any) -> np.ndarray:

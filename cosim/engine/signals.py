@@ -10,19 +10,25 @@ Inputs read through indices computed once: a connected input reads its
 source's slots; an unconnected input reads extra slots holding its default;
 an input on a `delay: 1` edge reads extra slots that the master refreshes from
 the source at the start of every tick (the value at the end of the previous
-tick).
+tick). An input on an edge with a linear transformation (`scale`, `offset`) also
+reads extra slots: the master writes scale * x + offset there just before the
+component gathers its inputs (or at the start of the tick, for a delayed edge).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 
 from cosim.component import Port
 from cosim.engine.schedule import wiring_error
+
+
+#: (source slot, destination slot, scale or None, offset or None) in `values`.
+Transform = tuple[int, int, Optional[float], Optional[float]]
 
 
 @dataclass
@@ -34,6 +40,8 @@ class ComponentSlots:
         in_arrays: (name, offset, size) of array inputs in `arrays`.
         out_scalar_names: scalar outputs, in slot order from out_scalar_start.
         out_arrays: (name, offset, size) of array outputs in `arrays`.
+        transforms: (src slot, own slot, scale, offset) of the scalar inputs on
+            transformed edges without delay, written just before each gather.
     """
 
     in_scalar_names: list[str] = field(default_factory=list)
@@ -42,6 +50,16 @@ class ComponentSlots:
     out_scalar_names: list[str] = field(default_factory=list)
     out_scalar_start: int = 0
     out_arrays: list[tuple[str, int, int]] = field(default_factory=list)
+    transforms: list[Transform] = field(default_factory=list)
+
+
+def transformed(x: float, scale: float | None, offset: float | None) -> float:
+    """x through a linear transformation: scale * x + offset, each part only where given."""
+    if scale is not None:
+        x = scale * x
+    if offset is not None:
+        x = x + offset
+    return x
 
 
 @dataclass
@@ -56,6 +74,8 @@ class SignalLayout:
         slots: component name -> its ComponentSlots.
         scalar_delays / array_delays: (src, dst) slot pairs (arrays: ranges as
             (src_offset, dst_offset, size)) the master copies at each tick start.
+        delayed_transforms: transformed delayed scalar edges (see Transform),
+            written at each tick start from the value at the end of the last tick.
     """
 
     outputs: dict[tuple[str, str], tuple[int, int]]
@@ -65,6 +85,7 @@ class SignalLayout:
     slots: dict[str, ComponentSlots]
     scalar_delays: list[tuple[int, int]]
     array_delays: list[tuple[int, int, int]]
+    delayed_transforms: list[Transform] = field(default_factory=list)
 
     def scalar_columns(self) -> list[tuple[str, int]]:
         """("component.signal", index in values) of every scalar output."""
@@ -118,11 +139,18 @@ def build_layout(components: Mapping[str, Any], edges: Iterable[Any]) -> SignalL
     feeds = _index_edges(components, edges, outputs)
     scalar_delays: list[tuple[int, int]] = []
     array_delays: list[tuple[int, int, int]] = []
+    delayed_transforms: list[Transform] = []
     for name, comp in components.items():
         for port in comp.inputs:
             edge = feeds.get((name, port.name))
             if edge is None:
                 offset = store.take(port)
+            elif _transform_of(edge) is not None:
+                offset = store.take(port)
+                scale, shift = _transform_of(edge)
+                src = outputs[(edge.src, edge.src_port)][0]
+                (delayed_transforms if edge.delay else slots[name].transforms).append(
+                    (src, offset, scale, shift))
             elif edge.delay:
                 src = outputs[(edge.src, edge.src_port)][0]
                 offset = store.take(port)
@@ -134,7 +162,13 @@ def build_layout(components: Mapping[str, Any], edges: Iterable[Any]) -> SignalL
                 offset = outputs[(edge.src, edge.src_port)][0]
             _add_input(slots[name], port, offset)
     return SignalLayout(outputs, ports, store.values, np.array(store.arrays, dtype=np.float64),
-                        slots, scalar_delays, array_delays)
+                        slots, scalar_delays, array_delays, delayed_transforms)
+
+
+def _transform_of(edge: Any) -> tuple[float | None, float | None] | None:
+    """(scale, offset) of an edge with a linear transformation, else None."""
+    scale, offset = getattr(edge, "scale", None), getattr(edge, "offset", None)
+    return None if scale is None and offset is None else (scale, offset)
 
 
 def _index_edges(components: Mapping[str, Any], edges: Iterable[Any],
@@ -158,6 +192,8 @@ def _index_edges(components: Mapping[str, Any], edges: Iterable[Any],
                                f"{dst_ports[edge.dst_port].size}")
         if edge.delay not in (0, 1):
             raise wiring_error(f"{where}: delay must be 0 or 1, got {edge.delay!r}")
+        if _transform_of(edge) is not None and src_size != 1:
+            raise wiring_error(f"{where}: scale/offset apply to scalar signals only")
         feeds[(edge.dst, edge.dst_port)] = edge
     return feeds
 

@@ -24,13 +24,19 @@ PortTable = Mapping[str, tuple[tuple[Port, ...], tuple[Port, ...]]]
 
 @dataclass(frozen=True)
 class Edge:
-    """One resolved signal edge: src.src_port feeds dst.dst_port, `delay` ticks late."""
+    """One resolved signal edge: src.src_port feeds dst.dst_port, `delay` ticks late.
+
+    `scale` and `offset`, when given, make the input read scale * x + offset (each
+    only where given: x * scale, x + offset); None leaves the value untouched.
+    """
 
     src: str
     src_port: str
     dst: str
     dst_port: str
     delay: int = 0
+    scale: float | None = None
+    offset: float | None = None
 
 
 @dataclass(frozen=True)
@@ -94,7 +100,7 @@ def _resolve_one(connection: Any, ports: PortTable,
     if messages:
         return [], [f"{text}: {m}" for m in messages]
     edge = Edge(connection.src_component, connection.src_port, connection.dst_component,
-                connection.dst_port, connection.delay)
+                connection.dst_port, connection.delay, connection.scale, connection.offset)
     mismatch = _compatibility(edge, ports)
     return ([], [f"{text}: {mismatch}"]) if mismatch else ([edge], [])
 
@@ -150,6 +156,11 @@ def _compatibility(edge: Edge, ports: PortTable, short: bool = False) -> str | N
     ends = f" on {edge.src}.{edge.src_port} -> {edge.dst}.{edge.dst_port}" if short else ""
     if out.size != inp.size:
         return f"size mismatch{ends}: output has {out.size} values, input takes {inp.size}"
+    transformed = edge.scale is not None or edge.offset is not None
+    if transformed and out.size != 1:
+        return f"scale/offset apply to scalar signals only; this one has {out.size} values"
+    if transformed:
+        return None  # the transformation is the unit conversion: the user owns it
     if out.unit and inp.unit and out.unit != inp.unit:
         return f"unit mismatch{ends}: output in {out.unit!r}, input in {inp.unit!r}"
     return None

@@ -29,6 +29,11 @@ The format, by example (every mapping forbids unknown fields):
       - controller.delta -> vehicle.delta
       - {from: side_wind.value, to: vehicle.wind_fy, delay: 1}
     record: {include: ["*"], exclude: []}
+    # system: plant.ssp               # an SSP's FMU components and connections, merged in first
+    # connection options: {from: a.x, to: b.u, scale: 1.3, offset: 50}  -> b.u = 1.3 * a.x + 50
+
+A path ending in .ssp or .ssd loads as the scenario of that SSP package
+(`cosim.scenario.ssp`).
 
 Example:
     scenario = load_scenario("scenarios/lane_change.yaml",
@@ -50,6 +55,7 @@ from cosim.errors import Problem, ScenarioError, did_you_mean
 from cosim.scenario.checks import BUILTIN_FMUS, IDENTIFIER, semantic_problems, whole_ticks
 from cosim.scenario.models import (ComponentSpec, Connection, FmuSpec, PythonSpec,
                                    RecordSpec, Scenario, Uncertainty)
+from cosim.scenario.systems import is_ssp, merge_system, ssp_scenario
 from cosim.scenario.sources import (SOURCE_CLASSES, SOURCE_KIND_ERROR, SOURCE_MODELS,
                                     ConstantSource, GustSource, RampSource, SourceSpec,
                                     StepSource, TableSource)
@@ -77,6 +83,9 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
         ScenarioError: listing every problem found (file, line, path, message).
     """
     file = Path(path)
+    if is_ssp(file):  # an SSP package runs as it stands (cosim.scenario.systems)
+        document, ssd_lines = ssp_scenario(file)
+        return _validate(document, file, ssd_lines, apply_overrides(document, overrides, ssd_lines))
     try:
         text = read_yaml_file(file)
     except FileNotFoundError:
@@ -88,6 +97,8 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
         raise ScenarioError(file, problems)
     if data is None:
         data = {}
+    if isinstance(data, dict) and data.get("system") is not None:
+        problems += merge_system(data, file.parent, lines)
     problems += apply_overrides(data, overrides, lines)
     if not isinstance(data, dict):
         problems.append(Problem("", 1, "a scenario must be a mapping of fields "
@@ -110,7 +121,10 @@ def scenario_from_dict(document: dict, overrides: Sequence[str] = ()) -> Scenari
     """
     data = copy.deepcopy(document)
     lines = LineMap()
-    problems = apply_overrides(data, overrides, lines)
+    problems = []
+    if isinstance(data, dict) and data.get("system") is not None:
+        problems += merge_system(data, Path.cwd(), lines)
+    problems += apply_overrides(data, overrides, lines)
     if not isinstance(data, dict):
         raise ScenarioError(None, [Problem("", None, "a scenario must be a mapping of fields "
                                                      "(name, duration, tick, components, ...)")])

@@ -16,7 +16,7 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field,
                       FiniteFloat, NonNegativeFloat, PositiveFloat, PrivateAttr, Tag,
-                      ValidationInfo,
+                      ValidationInfo, model_serializer,
                       model_validator)
 
 from cosim.errors import Problem, ScenarioError
@@ -125,6 +125,15 @@ ComponentSpec = Annotated[
 ]
 
 
+def _drop_none(dumped: Any, keys: tuple[str, ...]) -> Any:
+    """A dump without the optional fields of `keys` that are None (dumps stay as they were)."""
+    if isinstance(dumped, dict):
+        for key in keys:
+            if dumped.get(key, 0) is None:
+                del dumped[key]
+    return dumped
+
+
 def _parse_connection(value: Any) -> Any:
     """Accept the short string forms "a -> b" and "a.x -> b.y"."""
     if not isinstance(value, str):
@@ -142,6 +151,8 @@ class Connection(BaseModel):
     Attributes:
         src, dst: "component" or "component.port" (YAML keys `from` and `to`).
         delay: ticks of delay on this edge (1 breaks a feedback loop).
+        scale, offset: a linear transformation, the input reads scale * x + offset
+            (each applied only where given; scalar signals, a.x -> b.y form only).
     """
 
     model_config = ConfigDict(extra="forbid", validate_by_name=True, validate_by_alias=True,
@@ -149,6 +160,8 @@ class Connection(BaseModel):
     src: str = Field(alias="from", pattern=ENDPOINT)
     dst: str = Field(alias="to", pattern=ENDPOINT)
     delay: int = Field(0, ge=0, le=1)  # a feedback edge needs one tick; the master takes no more
+    scale: FiniteFloat | None = None
+    offset: FiniteFloat | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -160,7 +173,14 @@ class Connection(BaseModel):
         if (self.src_port is None) != (self.dst_port is None):
             raise ValueError(f"connection {self.src} -> {self.dst}: either both sides name a "
                              "port (a.x -> b.y) or neither (a -> b)")
+        if self.src_port is None and (self.scale is not None or self.offset is not None):
+            raise ValueError(f"connection {self.src} -> {self.dst}: scale and offset need "
+                             "the a.x -> b.y form")
         return self
+
+    @model_serializer(mode="wrap")
+    def _without_unset_transform(self, handler: Any) -> Any:
+        return _drop_none(handler(self), ("scale", "offset"))
 
     @property
     def src_component(self) -> str:
@@ -230,6 +250,9 @@ class Scenario(BaseModel):
     duration: PositiveFloat
     tick: PositiveFloat
     start_time: FiniteFloat | None = None  # None: the FMUs' DefaultExperiment, else 0
+    # an .ssp whose FMU components and connections the loader merges in (cosim.scenario.ssp);
+    # None once loaded, so that a loaded scenario's dump stands on its own
+    system: str | None = None
     components: dict[str, ComponentSpec] = Field(min_length=1)
     sources: dict[str, SourceSpec] = {}
     connections: list[ConnectionEntry] = []
@@ -237,6 +260,10 @@ class Scenario(BaseModel):
     metrics: MetricsSpec = MetricsSpec()
 
     _file: Path | None = PrivateAttr(None)
+
+    @model_serializer(mode="wrap")
+    def _without_merged_system(self, handler: Any) -> Any:
+        return _drop_none(handler(self), ("system",))  # dumps (manifests) stay as before
     _lines: LineMap = PrivateAttr(default_factory=LineMap)
 
     @model_validator(mode="after")
