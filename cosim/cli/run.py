@@ -20,7 +20,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from cosim.cli import interrupts
-from cosim.cli.common import user_error_exit
+from cosim.cli.common import STRICT_HELP, print_warning, user_error_exit
 from cosim.errors import UserError
 from cosim.execution.finish import analyse_run_folder  # shared with cosim.run (the Python API)
 from cosim.scenario.shipped import resolve_scenario
@@ -63,6 +63,7 @@ def run(
         None, "--foxglove", help="serve the run live to Foxglove on PORT (bare --foxglove: 8765)"),
     foxglove_host: str = typer.Option("127.0.0.1", "--foxglove-host",
                                       help="loopback address of the Foxglove server"),
+    strict: bool = typer.Option(False, "--strict", help=STRICT_HELP),
 ) -> None:
     """Run a scenario and write its run folder.
 
@@ -95,7 +96,8 @@ def run(
             early = prestart_components(scenario_file)  # their start overlaps the scenario's load
         result = _load_and_run(scenario_file, set_, out, (deploy, listen, connect), clock,
                                (foxglove, foxglove_host), transport=transport, realtime=realtime,
-                               place=place, deadline_s=deadline, prestart=early)
+                               place=place, deadline_s=deadline, prestart=early,
+                               strict=strict)
     except UserError as error:
         raise user_error_exit(error) from None
     except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
@@ -167,7 +169,8 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
     with _sigterm_interrupts(), live_server(loaded, *foxglove) as observers:
         result = run_scenario(loaded, folder, progress=sys.stdout.isatty(), deploy=settings,
                               clock=clock, on_live=_print_live, on_folder=_print_folder,
-                              observers=observers, **run_options)
+                              observers=observers, on_warning=print_warning,
+                              **run_options)
     result.mcap = loaded.record.mcap
     return result
 

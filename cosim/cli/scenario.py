@@ -7,12 +7,13 @@ import json
 
 import typer
 
-from cosim.cli.common import user_error_exit
+from cosim.cli.common import STRICT_HELP, print_warning, user_error_exit
 from cosim.errors import UserError
 
 
 def validate(file: str = typer.Argument(..., help="scenario YAML file, or a shipped scenario's name"),
-             set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE")) -> None:
+             set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE"),
+             strict: bool = typer.Option(False, "--strict", help=STRICT_HELP)) -> None:
     """Check a scenario (schema, FMUs, parameters, wiring) without running it.
 
     Example: cosim validate lane_change --set 'duration=10'
@@ -22,9 +23,11 @@ def validate(file: str = typer.Argument(..., help="scenario YAML file, or a ship
     from cosim.scenario.shipped import resolve_scenario
 
     try:
-        checked = validate_scenario(load_scenario(resolve_scenario(file), overrides=set_))
+        checked = validate_scenario(load_scenario(resolve_scenario(file), overrides=set_), strict=strict)
     except UserError as error:
         raise user_error_exit(error) from None
+    for gap in checked["warnings"]:
+        print_warning(gap)
     print(f"{file}: ok ({len(checked['components'])} components, {len(checked['edges'])} "
           f"connections; step order: {', '.join(checked['order'])})")
 

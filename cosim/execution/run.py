@@ -72,7 +72,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  on_live: Callable[[str, str], None] | None = None,
                  prestart: Any = None,
                  on_folder: Callable[[Path], None] | None = None,
-                 observers: Sequence[Any] = ()) -> RunResult:
+                 observers: Sequence[Any] = (), strict: bool = False,
+                 on_warning: Callable[[str], None] | None = None) -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -100,6 +101,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             fails before tick 0 leaves a manifest.json with status "failed".
         observers: more master observers (e.g. cosim.foxglove.live.FoxgloveLive),
             after the recorder; they must only read the signal store.
+        strict: interface gaps (`cosim.execution.completeness`) are errors.
+        on_warning: prints one interface-gap warning (once each, before tick 0).
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -128,6 +131,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             prepared = PreparedRun(scenario, local_fmus, launches, component_names(scenario),
                                    placement, deploy)
             hosted = _host_components(prepared, remote, clock)
+            _check_gaps(scenario, hosted, strict, on_warning)
             return _execute(prepared, hosted, remote, out, transport, run_id, realtime,
                             progress, clock, observers)
         except BaseException as exc:  # the announced folder says why the run never started
@@ -193,6 +197,9 @@ def _placed_fmu_launches(scenario: Any, placement: dict[str, str]) -> list[Pytho
     from cosim.fmu.remote import fmu_launch
 
     plans = [plan_fmu(scenario, name, spec) for name, spec in specs.items() if name in placement]
+    if any(p.solver is not None for p in plans):
+        raise UserError("a Model Exchange FMU runs in the master's process, not on a worker: "
+                        + ", ".join(p.name for p in plans if p.solver is not None))
     return [fmu_launch(p.name, p.path, dict(specs[p.name].variables), p.parameters,
                        p.period_ticks) for p in plans]
 
@@ -231,11 +238,13 @@ def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s
 def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock) -> dict[str, Any]:
     """Host every component; name -> HostedComponent in declaration order."""
     from cosim.fmu.host import FmuComponent
+    from cosim.fmu.model_exchange import ModelExchangeComponent
 
     hosted: dict[str, Any] = {}
     for plan in prepared.fmus:
-        hosted[plan.name] = FmuComponent(plan.name, plan.path, plan.interface,
-                                         plan.parameters, plan.period_ticks)
+        args = (plan.name, plan.path, plan.interface, plan.parameters, plan.period_ticks)
+        hosted[plan.name] = (FmuComponent(*args) if plan.solver is None
+                             else ModelExchangeComponent(*args, plan.solver))
     clock.mark("fmus_ready")
     if remote is not None:
         _preload()
@@ -246,6 +255,23 @@ def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock) ->
         hosted.update({l.name: InprocComponent(l) for l in prepared.launches})
     clock.mark("components_ready")
     return {name: hosted[name] for name in prepared.names}
+
+
+def _check_gaps(scenario: Any, hosted: dict[str, Any], strict: bool,
+                on_warning: Callable[[str], None] | None) -> None:
+    """Interface gaps of the hosted components: warnings, or one error with `strict`."""
+    from cosim.engine.wiring import resolve_wiring
+    from cosim.execution.completeness import interface_gaps, report_gaps
+
+    ports = {n: (c.inputs, c.outputs) for n, c in hosted.items()}
+    edges = resolve_wiring(scenario, ports, _unsupported(hosted))
+    report_gaps(interface_gaps(scenario, ports, edges), strict, on_warning)
+
+
+def _unsupported(hosted: dict[str, Any]) -> dict[str, Any]:
+    """FMU component -> its variables that cannot be connected."""
+    return {n: c.interface.unsupported for n, c in hosted.items()
+            if hasattr(getattr(c, "interface", None), "unsupported")}
 
 
 def _preload() -> None:
@@ -329,15 +355,12 @@ def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
                   realtime: float | None, progress: bool,
                   extra_observers: Sequence[Any] = ()) -> tuple[Master, Recorder, Any, Any]:
     """Wire the hosted components and attach the observers."""
-    from cosim.fmu.host import FmuComponent
     from cosim.engine.master import Master
     from cosim.results.recorder import Recorder
     from cosim.engine.wiring import resolve_wiring
 
-    unsupported = {n: c.interface.unsupported for n, c in hosted.items()
-                   if isinstance(c, FmuComponent)}
     edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()},
-                           unsupported)
+                           _unsupported(hosted))
     recorder = Recorder(out, scenario.record.include, scenario.record.exclude)
     pacer = bar = None
     if realtime is not None:

@@ -40,6 +40,25 @@ class Uncertainty(BaseModel):
         return value * self.scale + self.offset
 
 
+class SolverSpec(BaseModel):
+    """How the master integrates a Model Exchange FMU.
+
+    Attributes:
+        method: "cvode" (fmpy's SUNDIALS CVode, BDF, variable step, state events
+            located by root finding), "rk4" or "euler" (fixed step).
+        rtol: relative tolerance of cvode (fmpy's default).
+        atol: absolute tolerance of cvode (None: rtol times each state's nominal, as fmpy).
+        max_step: cvode's largest step (None: duration / 50, as fmpy); the
+            step of rk4 and euler (None: the component's period).
+    """
+
+    model_config = STRICT
+    method: Literal["cvode", "rk4", "euler"] = "cvode"
+    rtol: PositiveFloat = 1e-5
+    atol: PositiveFloat | None = None
+    max_step: PositiveFloat | None = None
+
+
 class FmuSpec(BaseModel):
     """A component that is an FMU (built-in name or path to a .fmu).
 
@@ -50,6 +69,9 @@ class FmuSpec(BaseModel):
         uncertainty: per-parameter scale/offset applied on top of `parameters`.
         variables: canonical name -> the FMU's variable name (foreign FMUs).
         host: "local" or the name of a worker.
+        interface: "co_simulation" or "model_exchange" (None: co-simulation
+            when the FMU offers it, else model exchange).
+        solver: the integrator of a Model Exchange FMU (None: cvode defaults).
     """
 
     model_config = STRICT
@@ -59,6 +81,8 @@ class FmuSpec(BaseModel):
     uncertainty: dict[str, Uncertainty] = {}
     variables: dict[str, str] = {}
     host: str = Field("local", min_length=1)
+    interface: Literal["co_simulation", "model_exchange"] | None = None
+    solver: SolverSpec | None = None
 
 
 class PythonSpec(BaseModel):
