@@ -1,0 +1,147 @@
+"""Model Exchange FMUs as components (cosim.fmu.model_exchange), FMI 2.0 and 3.0, held
+against fmpy.simulate_fmu(fmi_type="ModelExchange") under the same settings.
+
+Stated tolerance: ME_TOL = 1e-9 between the master and fmpy with CVode or Euler
+(the master drives fmpy's own CVode with the same calls, so the observed
+difference is 0.0). RK4 is held against the analytic bouncing ball (exact
+between events, events bisected to 1e-12 s): RK4_TOL = 1e-8.
+"""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import fmpy
+import numpy as np
+import pytest
+
+from cosim.errors import UserError
+from cosim.execution.run import run_scenario
+from cosim.execution.validate import validate_scenario
+from cosim.scenario.loader import load_scenario
+from tests.fmu.test_model_exchange_fmu import analytic
+
+VERSIONS = [2, 3]
+ME_TOL = 1e-9
+RK4_TOL = 1e-8
+
+
+def scenario_file(tmp_path: Path, component: str, duration: float = 2.0,
+                  extra: str = "") -> Path:
+    """A scenario YAML with one FMU component `ball` (or `lag`) given as a YAML flow map."""
+    path = tmp_path / "me.yaml"
+    path.write_text(f"name: me\nduration: {duration}\ntick: 0.01\n"
+                    f"components:\n  {component}\n{extra}")
+    return path
+
+
+def run(tmp_path: Path, yaml: Path) -> tuple[dict[str, np.ndarray], dict]:
+    """Run in-process; (column -> values, manifest)."""
+    result = run_scenario(load_scenario(yaml), tmp_path / "run", progress=False)
+    assert result.status == "ok", result.error
+    with result.signals.open() as stream:
+        rows = list(csv.DictReader(stream))
+    columns = {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
+    return columns, json.loads(result.manifest.read_text())
+
+
+def fmpy_me(fmu: Path, stop: float, solver: str, **kwargs) -> np.ndarray:
+    return fmpy.simulate_fmu(str(fmu), fmi_type="ModelExchange", stop_time=stop,
+                             output_interval=0.01, step_size=0.01, solver=solver,
+                             record_events=False, **kwargs)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("method", ["cvode", "euler"])
+def test_bouncing_ball_matches_fmpy(tmp_path, test_fmu, version, method) -> None:
+    fmu = test_fmu("BouncingBall", version)
+    solver = ("{method: cvode, rtol: 1.0e-6, max_step: 0.08}" if method == "cvode"  # fmpy's: 4 s / 50
+              else "{method: euler, max_step: 0.01}")
+    ours, manifest = run(tmp_path, scenario_file(
+        tmp_path, f"ball: {{fmu: {fmu}, interface: model_exchange, solver: {solver}}}", 4.0))
+    ref = fmpy_me(fmu, 4.0, "CVode" if method == "cvode" else "Euler", relative_tolerance=1e-6)
+    assert np.array_equal(ours["time"], ref["time"])
+    for name in ("h", "v"):
+        assert np.max(np.abs(ours[f"ball.{name}"] - ref[name])) <= ME_TOL, name
+    assert manifest["fmus"]["ball"]["fmi_type"] == "ModelExchange"
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    # impacts at 0.45, 1.08, 1.53, 1.84, 2.05 (rest), 3.82 s; the kick at 3 s
+    assert (metrics["ball.state_events"], metrics["ball.time_events"]) == (6.0, 1.0)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_rk4_follows_the_analytic_ball_through_its_events(tmp_path, test_fmu, version) -> None:
+    fmu = test_fmu("BouncingBallME", version)  # ME only: no `interface:` needed
+    ours, manifest = run(tmp_path, scenario_file(
+        tmp_path, f"ball: {{fmu: {fmu}, solver: {{method: rk4, max_step: 0.005}}}}", 5.0))
+    assert manifest["fmus"]["ball"]["fmi_type"] == "ModelExchange"
+    for k in range(0, len(ours["time"]), 37):
+        _, (h, v, _) = analytic(ours["time"][k])
+        assert ours["ball.h"][k] == pytest.approx(h, abs=RK4_TOL)
+        assert ours["ball.v"][k] == pytest.approx(v, abs=RK4_TOL)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("method", ["cvode", "euler"])
+def test_an_input_step_is_an_input_event_as_in_fmpy(tmp_path, test_fmu, version, method) -> None:
+    """u steps 0 -> 1 at 0.5 s: the master holds u over each tick, so the lag
+    sees the step at 0.5 s, where fmpy's input table (a repeated time) puts it."""
+    fmu = test_fmu("LagME", version)
+    max_step = 0.04 if method == "cvode" else 0.01  # fmpy's: 2 s / 50, and its Euler's tick
+    yaml = scenario_file(tmp_path, f"lag: {{fmu: {fmu}, interface: model_exchange, "
+                         f"solver: {{method: {method}, max_step: {max_step}}}}}",
+                         extra="sources:\n  u: {kind: step, initial: 0.0, final: 1.0, at: 0.5}\n"
+                               "connections:\n  - u.value -> lag.u\n")
+    ours, _ = run(tmp_path, yaml)
+    table = np.array([(0.0, 0.0), (0.5, 0.0), (0.5, 1.0), (2.0, 1.0)],
+                     dtype=[("time", float), ("u", float)])
+    ref = fmpy_me(fmu, 2.0, "CVode" if method == "cvode" else "Euler", input=table)
+    assert np.max(np.abs(ours["lag.y"] - ref["y"])) <= ME_TOL
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["lag.input_events"] == 1.0
+    k = int(np.searchsorted(ours["time"], 1.5))  # y = K (1 - exp(-(t - 0.5) / tau))
+    exact = 2.0 * (1.0 - np.exp(-(ours["time"][k] - 0.5) / 0.5))
+    assert ours["lag.y"][k] == pytest.approx(exact, rel=2e-2 if method == "euler" else 1e-4)
+
+
+def test_an_fmu_with_both_interfaces_runs_co_simulation_unless_asked(tmp_path, test_fmu) -> None:
+    fmu = test_fmu("BouncingBall", 2)
+    default = validate_scenario(load_scenario(scenario_file(tmp_path, f"ball: {{fmu: {fmu}}}")))
+    assert default["order"] == ["ball"]
+    _, manifest = run(tmp_path, scenario_file(tmp_path, f"ball: {{fmu: {fmu}}}"))
+    assert (manifest["fmus"]["ball"]["fmi_type"], manifest["fmus"]["ball"]["solver"]) == \
+        ("CoSimulation", None)
+
+
+def test_solver_on_a_co_simulation_run_is_an_error(tmp_path, test_fmu) -> None:
+    fmu = test_fmu("BouncingBall", 3)
+    yaml = scenario_file(tmp_path, f"ball: {{fmu: {fmu}, solver: {{method: rk4}}}}")
+    with pytest.raises(UserError, match=r"me\.yaml:\d+: components\.ball\.solver: solver: "
+                                        r"applies to Model Exchange only"):
+        validate_scenario(load_scenario(yaml))
+
+
+def test_model_exchange_asked_of_a_co_simulation_only_fmu(tmp_path, test_fmu) -> None:
+    fmu = test_fmu("Lag", 2)
+    yaml = scenario_file(tmp_path, f"lag: {{fmu: {fmu}, interface: model_exchange}}")
+    with pytest.raises(UserError, match=r"Lag\.fmu: the FMU does not offer model exchange "
+                                        r"\(it offers: co_simulation\)"):
+        validate_scenario(load_scenario(yaml))
+
+
+def test_an_unknown_solver_method_is_a_schema_error(tmp_path, test_fmu) -> None:
+    fmu = test_fmu("BouncingBallME", 2)
+    yaml = scenario_file(tmp_path, f"ball: {{fmu: {fmu}, solver: {{method: dopri}}}}")
+    with pytest.raises(UserError, match=r"components\.ball\.solver\.method"):
+        load_scenario(yaml)
+
+
+def test_default_cvode_settings_are_fmpys(tmp_path, test_fmu) -> None:
+    """No `solver:`: CVode, rtol 1e-5, max_step duration / 50, as fmpy.simulate_fmu."""
+    fmu = test_fmu("BouncingBallME", 3)
+    ours, manifest = run(tmp_path, scenario_file(tmp_path, f"ball: {{fmu: {fmu}}}", 2.5))
+    assert manifest["fmus"]["ball"]["solver"] == {"method": "cvode", "rtol": 1e-5,
+                                                  "atol": None, "max_step": 0.05}
+    ref = fmpy_me(fmu, 2.5, "CVode")
+    assert np.max(np.abs(ours["ball.h"] - ref["h"])) <= ME_TOL
