@@ -145,3 +145,42 @@ def test_default_cvode_settings_are_fmpys(tmp_path, test_fmu) -> None:
                                                   "atol": None, "max_step": 0.05}
     ref = fmpy_me(fmu, 2.5, "CVode")
     assert np.max(np.abs(ours["ball.h"] - ref["h"])) <= ME_TOL
+
+
+def lag_component(fmu: Path, method: str = "cvode"):
+    from cosim.fmu.interface import describe_fmu
+    from cosim.fmu.model_exchange import ModelExchangeComponent
+
+    interface = describe_fmu(fmu, kind="model_exchange")
+    interface.model_description.modelExchange.needsCompletedIntegratorStep = True
+    settings = {"method": method, "rtol": 1e-5, "atol": None, "max_step": 0.01}
+    return ModelExchangeComponent("lag", fmu, interface, {}, 1, settings)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_a_step_event_from_completed_integrator_step_runs_the_event_iteration(
+        test_fmu, version) -> None:
+    comp = lag_component(test_fmu("LagME", version))
+    comp.start(0.0, {"u": 1.0})
+    calls, entered = [], []
+    real_completed, real_enter = comp._fmu.completedIntegratorStep, comp._fmu.enterEventMode
+    comp._fmu.completedIntegratorStep = lambda: (calls.append(real_completed()) or
+                                                 (len(calls) == 3, False))
+    comp._fmu.enterEventMode = lambda: entered.append(real_enter())
+    for tick in range(1, 6):
+        comp.step(tick, tick * 0.01, {"u": 1.0})
+    metrics = comp.stop()
+    assert len(calls) == 5 and len(entered) == 1
+    assert metrics == {"time_events": 0.0, "state_events": 0.0, "step_events": 1.0,
+                       "input_events": 0.0}
+
+
+def test_a_termination_request_from_completed_integrator_step_ends_the_run(test_fmu) -> None:
+    from cosim.errors import ComponentFailure
+
+    comp = lag_component(test_fmu("LagME", 3), method="rk4")
+    comp.start(0.0, {"u": 0.0})
+    comp._fmu.completedIntegratorStep = lambda: (False, True)
+    with pytest.raises(ComponentFailure, match="the FMU asked to terminate the simulation"):
+        comp.step(1, 0.01, {"u": 0.0})
+    comp.stop()
