@@ -114,27 +114,20 @@ def test_an_fmu_with_both_interfaces_runs_co_simulation_unless_asked(tmp_path, t
         ("CoSimulation", None)
 
 
-def test_solver_on_a_co_simulation_run_is_an_error(tmp_path, test_fmu) -> None:
-    fmu = test_fmu("BouncingBall", 3)
-    yaml = scenario_file(tmp_path, f"ball: {{fmu: {fmu}, solver: {{method: rk4}}}}")
-    with pytest.raises(UserError, match=r"me\.yaml:\d+: components\.ball\.solver: solver: "
-                                        r"applies to Model Exchange only"):
+@pytest.mark.parametrize("model, fields, message", [
+    ("BouncingBall", "solver: {method: rk4}",
+     r"me\.yaml:\d+: components\.ball\.solver: solver: applies to Model Exchange only"),
+    ("Lag", "interface: model_exchange",
+     r"Lag\.fmu: the FMU does not offer model exchange \(it offers: co_simulation\)"),
+    ("BouncingBallME", "solver: {method: dopri}", r"components\.ball\.solver\.method"),
+    ("BouncingBallME", "host: far",
+     r"components\.ball\.host: a Model Exchange FMU runs in the master's process"),
+])
+def test_interface_and_solver_mistakes_are_located(tmp_path, test_fmu, model, fields,
+                                                   message) -> None:
+    yaml = scenario_file(tmp_path, f"ball: {{fmu: {test_fmu(model, 2)}, {fields}}}")
+    with pytest.raises(UserError, match=message):
         validate_scenario(load_scenario(yaml))
-
-
-def test_model_exchange_asked_of_a_co_simulation_only_fmu(tmp_path, test_fmu) -> None:
-    fmu = test_fmu("Lag", 2)
-    yaml = scenario_file(tmp_path, f"lag: {{fmu: {fmu}, interface: model_exchange}}")
-    with pytest.raises(UserError, match=r"Lag\.fmu: the FMU does not offer model exchange "
-                                        r"\(it offers: co_simulation\)"):
-        validate_scenario(load_scenario(yaml))
-
-
-def test_an_unknown_solver_method_is_a_schema_error(tmp_path, test_fmu) -> None:
-    fmu = test_fmu("BouncingBallME", 2)
-    yaml = scenario_file(tmp_path, f"ball: {{fmu: {fmu}, solver: {{method: dopri}}}}")
-    with pytest.raises(UserError, match=r"components\.ball\.solver\.method"):
-        load_scenario(yaml)
 
 
 def test_default_cvode_settings_are_fmpys(tmp_path, test_fmu) -> None:
