@@ -96,9 +96,10 @@ def _platforms(names: list[str], identifier: str) -> list[str]:
 
 
 def compile_cache_dir() -> Path:
-    """Where compiled copies of source-only FMUs are kept ($XDG_CACHE_HOME/cosim/compiled-fmus)."""
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "cosim" / "compiled-fmus"
+    """Where compiled copies of source-only FMUs are kept (beside the built-in FMUs' cache)."""
+    from cosim.fmu.cache import cache_root
+
+    return cache_root() / "compiled-fmus"
 
 
 def compiled_copy(path: Path, interface: Any, platforms: list[str]) -> Path:

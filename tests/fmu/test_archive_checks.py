@@ -75,12 +75,12 @@ def test_cli_validate_and_run_exit_2_on_a_missing_binary(tmp_path, test_fmu, cap
 @pytest.mark.parametrize("version", [2, 3])
 def test_a_source_only_fmu_is_compiled_once_and_runs(tmp_path, test_fmu, monkeypatch,
                                                      version) -> None:
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setenv("COSIM_CACHE_DIR", str(tmp_path / "cache"))
     original = test_fmu("Lag", version)
     fmu = rewrite_fmu(original, tmp_path / "src.fmu", drop=("binaries/",))
     yaml = scenario(tmp_path, fmu, duration=0.5)
     validate_scenario(load_scenario(yaml))
-    compiled = list((tmp_path / "cache" / "cosim" / "compiled-fmus").glob("*/src.fmu"))
+    compiled = list((tmp_path / "cache" / "compiled-fmus").glob("*/src.fmu"))
     assert len(compiled) == 1 and "binaries/" in str(zipfile.ZipFile(compiled[0]).namelist())
     result = run_scenario(load_scenario(yaml), tmp_path / "run", progress=False)
     reference = run_scenario(load_scenario(scenario(tmp_path, original, duration=0.5)),
@@ -89,7 +89,7 @@ def test_a_source_only_fmu_is_compiled_once_and_runs(tmp_path, test_fmu, monkeyp
 
 
 def test_sources_that_do_not_compile_say_so(tmp_path, test_fmu, monkeypatch) -> None:
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setenv("COSIM_CACHE_DIR", str(tmp_path / "cache"))
     fmu = rewrite_fmu(test_fmu("Lag", 2), tmp_path / "broken.fmu", drop=("binaries/",),
                       replace={"sources/model.c": b"#error this model is broken\n"})
     message = validate_error(tmp_path, fmu)
