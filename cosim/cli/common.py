@@ -15,6 +15,19 @@ from rich.console import Console
 from cosim.errors import UserError
 
 EXIT_USER_ERROR = 2
+STRICT_HELP = ("a plant-contract output the plant lacks, or an input left unconnected, "
+               "is an error (default: a warning)")
+
+
+def print_warning(text: str) -> None:
+    """Print one warning line on stderr ("warning: ...").
+
+    Args:
+        text: the warning; printed as is (no markup read from it).
+    """
+    console = Console(stderr=True, highlight=False, soft_wrap=True)
+    console.print("[yellow]warning:[/yellow] ", markup=True, end="")
+    console.print(text, markup=False)
 
 
 def user_error_exit(error: UserError) -> typer.Exit:

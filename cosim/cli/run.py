@@ -20,7 +20,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from cosim.cli import interrupts
-from cosim.cli.common import user_error_exit
+from cosim.cli.common import STRICT_HELP, print_warning, user_error_exit
 from cosim.errors import UserError
 from cosim.execution.finish import analyse_run_folder  # shared with cosim.run (the Python API)
 from cosim.scenario.shipped import resolve_scenario
@@ -75,6 +75,7 @@ def run(
     supervise: bool = typer.Option(True, "--supervise/--no-supervise",
                                    help="a parent process that completes the run folder if "
                                         "the master dies or hangs in native code"),
+    strict: bool = typer.Option(False, "--strict", help=STRICT_HELP),
 ) -> None:
     """Run a scenario and write its run folder.
 
@@ -116,7 +117,7 @@ def run(
         result = _load_and_run(scenario_file, set_, out_dir, (deploy, listen, connect), clock,
                                (foxglove, foxglove_host), transport=transport, realtime=realtime,
                                place=place, deadline_s=deadline, prestart=early, limits=limits,
-                               fmu_log=fmu_log)
+                               fmu_log=fmu_log, strict=strict)
     except UserError as error:
         raise user_error_exit(error) from None
     except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
@@ -213,7 +214,8 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
     with _sigterm_interrupts(), live_server(loaded, *foxglove) as observers:
         result = run_scenario(loaded, folder, progress=sys.stdout.isatty(), deploy=settings,
                               clock=clock, on_live=_print_live, on_folder=_print_folder,
-                              observers=observers, **run_options)
+                              observers=observers, on_warning=print_warning,
+                              **run_options)
     result.mcap = loaded.record.mcap
     return result
 

@@ -7,7 +7,7 @@ import json
 
 import typer
 
-from cosim.cli.common import user_error_exit
+from cosim.cli.common import STRICT_HELP, print_warning, user_error_exit
 from cosim.errors import UserError
 from cosim.execution.limits import DEFAULT_MAX_TICKS, RunLimits
 
@@ -17,7 +17,8 @@ def validate(file: str = typer.Argument(..., help="scenario YAML file, or a ship
              max_ticks: int = typer.Option(DEFAULT_MAX_TICKS, "--max-ticks",
                                            help="refuse a run of more ticks than this"),
              allow_large: bool = typer.Option(False, "--allow-large",
-                                              help="no limit on ticks or CSV size")) -> None:
+                                              help="no limit on ticks or CSV size"),
+             strict: bool = typer.Option(False, "--strict", help=STRICT_HELP)) -> None:
     """Check a scenario (schema, FMUs, parameters, wiring, run size) without running it.
 
     Example: cosim validate lane_change --set 'duration=10'
@@ -28,9 +29,12 @@ def validate(file: str = typer.Argument(..., help="scenario YAML file, or a ship
 
     try:
         limits = RunLimits(max_ticks, allow_large)
-        checked = validate_scenario(load_scenario(resolve_scenario(file), overrides=set_), limits)
+        checked = validate_scenario(load_scenario(resolve_scenario(file), overrides=set_), limits,
+                                     strict=strict)
     except UserError as error:
         raise user_error_exit(error) from None
+    for gap in checked["warnings"]:
+        print_warning(gap)
     print(f"{file}: ok ({len(checked['components'])} components, {len(checked['edges'])} "
           f"connections; step order: {', '.join(checked['order'])})")
 

@@ -66,6 +66,16 @@ def host_fmus(scenario: Any, plans: list[Any], out: Path, deadline_of: dict[str,
     for plan in plans:
         spec = scenario.components[plan.name]
         log_file = out / RUN_LOG if (spec.log or fmu_log) else None
+        if getattr(plan, "solver", None) is not None:  # a Model Exchange FMU: we integrate it
+            if spec.isolate:
+                raise UserError(f"{scenario.where(('components', plan.name, 'isolate'))}: "
+                                "isolate: true is not available for a Model Exchange FMU yet")
+            from cosim.fmu.model_exchange import ModelExchangeComponent
+
+            hosted[plan.name] = ModelExchangeComponent(plan.name, plan.path, plan.interface,
+                                                       plan.parameters, plan.period_ticks,
+                                                       plan.solver)
+            continue
         if spec.isolate or _only_once(plan) and _identifier(plan) in loaded:
             from cosim.fmu.isolated import IsolatedFmu
 

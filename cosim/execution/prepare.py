@@ -29,6 +29,7 @@ class FmuPlan:
     interface: Any
     parameters: dict[str, float]
     period_ticks: int
+    solver: dict[str, Any] | None = None  # Model Exchange: the resolved `solver:` settings
 
 
 @dataclass
@@ -154,10 +155,48 @@ def plan_fmu(scenario: Any, name: str, spec: Any) -> FmuPlan:
     else:
         path = Path(where)
     origin = scenario.where(("components", name, "variables"))
-    interface = describe_fmu(path, dict(spec.variables), origin=origin)
+    interface = describe_fmu(path, dict(spec.variables), origin=origin, kind=spec.interface)
+    path = _checked_archive(scenario, name, spec, path, interface)
     parameters = scenario.plant_parameters(name, _start_values(interface))
     check_parameters(interface, parameters, name, scenario=scenario)
-    return FmuPlan(name, path, interface, parameters, scenario.period_ticks(name))
+    return FmuPlan(name, path, interface, parameters, scenario.period_ticks(name),
+                   _solver_settings(scenario, name, spec, interface))
+
+
+def _checked_archive(scenario: Any, name: str, spec: Any, path: Path, interface: Any) -> Path:
+    """The archive checks (cosim.fmu.archive) and the variables no host can run; the path to load."""
+    from cosim.fmu.archive import check_archive
+    from cosim.errors import FmuInterfaceError
+
+    where = scenario.where(("components", name, "fmu"))
+    arrays = [p.name for p in (*interface.inputs, *interface.outputs) if p.size != 1]
+    if arrays:
+        raise FmuInterfaceError(f"{where}: component {name!r}: array variables of FMU "
+                                f"{path.name} are not supported yet: {', '.join(arrays)}")
+    if interface.fmi_type == "ModelExchange" and spec.host != "local":
+        raise FmuInterfaceError(f"{scenario.where(('components', name, 'host'))}: a Model "
+                                "Exchange FMU runs in the master's process, not on a worker")
+    try:
+        return check_archive(path, interface, local=spec.host == "local")
+    except FmuInterfaceError as exc:
+        raise FmuInterfaceError(f"{where}: {exc}") from None
+
+
+def _solver_settings(scenario: Any, name: str, spec: Any, interface: Any) -> dict[str, Any] | None:
+    """Resolved `solver:` of a Model Exchange FMU (defaults as fmpy's); None for co-simulation."""
+    if interface.fmi_type != "ModelExchange":
+        if spec.solver is not None:
+            raise UserError(f"{scenario.where(('components', name, 'solver'))}: solver: applies "
+                            "to Model Exchange only, and this FMU runs as co-simulation "
+                            "(set interface: model_exchange to integrate it here)")
+        return None
+    from cosim.scenario.models import SolverSpec
+
+    settings = (spec.solver or SolverSpec()).model_dump()
+    if settings["max_step"] is None:
+        settings["max_step"] = (scenario.duration / 50 if settings["method"] == "cvode"
+                                else scenario.period_ticks(name) * scenario.tick)
+    return settings
 
 
 def _start_values(interface: Any) -> dict[str, float]:

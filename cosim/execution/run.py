@@ -78,7 +78,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  on_folder: Callable[[Path], None] | None = None,
                  observers: Sequence[Any] = (),
                  limits: RunLimits | None = None,
-                 fmu_log: bool = False) -> RunResult:
+                 fmu_log: bool = False, strict: bool = False,
+                 on_warning: Callable[[str], None] | None = None) -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -109,6 +110,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             after the recorder; they must only read the signal store.
         limits: how large the run may be (cosim.execution.limits; default: the defaults).
         fmu_log: every FMU's log messages go to run.log (`--fmu-log`).
+        strict: interface gaps (`cosim.execution.completeness`) are errors.
+        on_warning: prints one interface-gap warning (once each, before tick 0).
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -146,6 +149,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                                fmu_hosting.deadlines(scenario, prepared.names, deadline_s),
                                fmu_log, page, tuple(observers))
             hosted = _host_components(prepared, remote, clock, out, options)
+            _check_gaps(scenario, hosted, strict, on_warning)
             return _execute(prepared, hosted, remote, out, transport, run_id, realtime,
                             progress, clock, options)
         except BaseException as exc:  # the announced folder says why the run never started
@@ -226,6 +230,9 @@ def _placed_fmu_launches(scenario: Any, placement: dict[str, str]) -> list[Pytho
     from cosim.fmu.remote import fmu_launch
 
     plans = [plan_fmu(scenario, name, spec) for name, spec in specs.items() if name in placement]
+    if any(p.solver is not None for p in plans):
+        raise UserError("a Model Exchange FMU runs in the master's process, not on a worker: "
+                        + ", ".join(p.name for p in plans if p.solver is not None))
     return [fmu_launch(p.name, p.path, dict(specs[p.name].variables), p.parameters,
                        p.period_ticks) for p in plans]
 
@@ -276,6 +283,23 @@ def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock, ou
         hosted.update({l.name: InprocComponent(l) for l in prepared.launches})
     clock.mark("components_ready")
     return {name: hosted[name] for name in prepared.names}
+
+
+def _check_gaps(scenario: Any, hosted: dict[str, Any], strict: bool,
+                on_warning: Callable[[str], None] | None) -> None:
+    """Interface gaps of the hosted components: warnings, or one error with `strict`."""
+    from cosim.engine.wiring import resolve_wiring
+    from cosim.execution.completeness import interface_gaps, report_gaps
+
+    ports = {n: (c.inputs, c.outputs) for n, c in hosted.items()}
+    edges = resolve_wiring(scenario, ports, _unsupported(hosted))
+    report_gaps(interface_gaps(scenario, ports, edges), strict, on_warning)
+
+
+def _unsupported(hosted: dict[str, Any]) -> dict[str, Any]:
+    """FMU component -> its variables that cannot be connected."""
+    return {n: c.interface.unsupported for n, c in hosted.items()
+            if hasattr(getattr(c, "interface", None), "unsupported")}
 
 
 def _preload() -> None:
@@ -377,10 +401,8 @@ def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
     from cosim.results.recorder import Recorder
     from cosim.engine.wiring import resolve_wiring
 
-    unsupported = {n: c.interface.unsupported for n, c in hosted.items()
-                   if hasattr(c, "interface") and hasattr(c.interface, "unsupported")}
     edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()},
-                           unsupported)
+                           _unsupported(hosted))
     page = options.page
     recorder = Recorder(out, scenario.record.include, scenario.record.exclude,
                         on_writer=page.note_writer if page is not None else None)

@@ -16,22 +16,27 @@ from cosim.execution.abort import locate_parameter_problem
 from cosim.execution.limits import RunLimits, check_recorded_size, check_ticks
 
 
-def validate_scenario(scenario: Any, limits: RunLimits | None = None) -> dict[str, Any]:
+def validate_scenario(scenario: Any, limits: RunLimits | None = None,
+                      strict: bool = False) -> dict[str, Any]:
     """Check a scenario as far as possible without running it.
 
-    Resolves and describes the FMUs, checks parameters, constructs the Python
-    components in this process to read their ports, resolves the wiring and
-    derives the step order (an algebraic loop is an error).
+    Resolves and describes the FMUs (their archives too), checks parameters,
+    constructs the Python components in this process to read their ports,
+    resolves the wiring, derives the step order (an algebraic loop is an
+    error) and lists the interface gaps (`cosim.execution.completeness`).
 
     Args:
         scenario: a validated `cosim.scenario.loader.Scenario`.
         limits: how large the run may be (default: the defaults of `cosim run`).
+        strict: interface gaps are errors.
     Returns:
-        {"components": name -> (inputs, outputs), "edges": [...], "order": [...]}.
+        {"components": name -> (inputs, outputs), "edges": [...], "order": [...],
+        "warnings": [...]}.
     Raises:
         UserError describing the first class of problems found.
     """
     from cosim.transport.inproc import construct_component
+    from cosim.execution.completeness import interface_gaps, report_gaps
     from cosim.execution.prepare import prepare_run
 
     limits = limits or RunLimits()
@@ -39,7 +44,10 @@ def validate_scenario(scenario: Any, limits: RunLimits | None = None) -> dict[st
     try:
         prepared = prepare_run(scenario)
         prepared.limits = limits
-        return _validate_prepared(scenario, prepared, construct_component)
+        checked = _validate_prepared(scenario, prepared, construct_component)
+        checked["warnings"] = interface_gaps(scenario, checked["components"], checked["edges"])
+        report_gaps(checked["warnings"], strict, None)
+        return checked
     except UserError as exc:
         located = locate_parameter_problem(scenario, exc)
         if located is not None:

@@ -1,6 +1,7 @@
 """What an FMU offers, read from its modelDescription.xml, checked before t = 0.
 
-`describe_fmu` reads an FMU file (FMI 2.0 or 3.x, co-simulation) with fmpy,
+`describe_fmu` reads an FMU file (FMI 2.0 or 3.x, co-simulation or model
+exchange) with fmpy,
 without loading its binary, and gives its inputs and outputs as cosim Ports,
 its parameters, and value references, all under canonical names: a foreign
 FMU's variables are renamed through the scenario's `variables:` map
@@ -61,6 +62,7 @@ class FmuInterface:
         unsupported: inputs, outputs and parameters that cannot be connected or
             set (name -> why, e.g. "Integer"); connecting one is an error.
         model_description: fmpy's ModelDescription, for instantiating the FMU.
+        fmi_type: "CoSimulation" or "ModelExchange": the interface the run uses.
     """
 
     path: Path
@@ -76,6 +78,7 @@ class FmuInterface:
     fmu_names: dict[str, str] = field(default_factory=dict)
     unsupported: dict[str, str] = field(default_factory=dict)
     model_description: Any = field(default=None, repr=False, compare=False)
+    fmi_type: str = "CoSimulation"
 
     @property
     def ports(self) -> tuple[tuple[Port, ...], tuple[Port, ...]]:
@@ -84,7 +87,7 @@ class FmuInterface:
 
 
 def describe_fmu(path: str | Path, variables: Mapping[str, str] | None = None,
-                 origin: str | None = None) -> FmuInterface:
+                 origin: str | None = None, kind: str | None = None) -> FmuInterface:
     """Read and check an FMU's interface.
 
     Args:
@@ -92,16 +95,16 @@ def describe_fmu(path: str | Path, variables: Mapping[str, str] | None = None,
         variables: canonical name -> FMU variable name, for foreign FMUs.
         origin: where the name map comes from, prefixed to its errors
             (e.g. "lane.yaml:12: components.vehicle.variables").
+        kind: "co_simulation" or "model_exchange" (the scenario's `interface:`);
+            None: co-simulation when the FMU offers it, else model exchange.
     Raises:
         FmuInterfaceError: not a zip / no modelDescription.xml / invalid XML,
-            no co-simulation, FMI version other than 2.0 and 3.x, a mapped name
-            missing from the FMU or not a Float64/Real input, output or parameter.
+            the interface asked for missing, FMI version other than 2.0 and 3.x, a mapped
+            name missing from the FMU or not a Float64/Real input, output or parameter.
     """
     fmu = Path(path)
     md = _read_description(fmu)
-    if md.coSimulation is None:
-        raise FmuInterfaceError(f"{fmu}: the FMU does not support co-simulation "
-                                "(model exchange only); export it for co-simulation")
+    fmi_type, identity = _fmi_type(md, kind, fmu)
     names = _canonical_names(md.modelVariables, dict(variables or {}), fmu, origin)
     inputs: list[Port] = []
     outputs: list[Port] = []
@@ -122,11 +125,23 @@ def describe_fmu(path: str | Path, variables: Mapping[str, str] | None = None,
             (inputs if var.causality == "input" else outputs).append(_port(name, var))
     return FmuInterface(
         path=fmu, fmi_version=md.fmiVersion, model_name=md.modelName or "",
-        model_identifier=md.coSimulation.modelIdentifier, guid=md.guid or "",
+        model_identifier=identity.modelIdentifier, guid=md.guid or "",
         sha256=_sha256(fmu), inputs=tuple(inputs), outputs=tuple(outputs),
         parameters=parameters, value_references=refs,
         fmu_names={canonical: fmu_name for fmu_name, canonical in names.items()},
-        unsupported=unsupported, model_description=md)
+        unsupported=unsupported, model_description=md, fmi_type=fmi_type)
+
+
+def _fmi_type(md: Any, kind: str | None, fmu: Path) -> tuple[str, Any]:
+    """The interface a run uses ("CoSimulation"/"ModelExchange") and its XML element."""
+    offered = {"co_simulation": md.coSimulation, "model_exchange": md.modelExchange}
+    if kind is None:
+        kind = "co_simulation" if md.coSimulation is not None else "model_exchange"
+    if offered[kind] is None:
+        has = [k for k, v in offered.items() if v is not None]
+        raise FmuInterfaceError(f"{fmu}: the FMU does not offer {kind.replace('_', ' ')} "
+                                f"(it offers: {', '.join(has) or 'neither interface'})")
+    return ("CoSimulation" if kind == "co_simulation" else "ModelExchange"), offered[kind]
 
 
 def _read_description(fmu: Path) -> Any:

@@ -115,6 +115,8 @@ def _fmu_entry(plan: Any) -> dict[str, Any]:
         "fmi_version": getattr(interface, "fmi_version", None),
         "model_identifier": getattr(interface, "model_identifier", None),
         "guid": getattr(interface, "guid", None),
+        "fmi_type": getattr(interface, "fmi_type", None),
+        "solver": getattr(plan, "solver", None),
         "parameters": dict(plan.parameters),
     }
 

@@ -56,6 +56,25 @@ class Uncertainty(BaseModel):
         return value * self.scale + self.offset
 
 
+class SolverSpec(BaseModel):
+    """How the master integrates a Model Exchange FMU.
+
+    Attributes:
+        method: "cvode" (fmpy's SUNDIALS CVode, BDF, variable step, state events
+            located by root finding), "rk4" or "euler" (fixed step).
+        rtol: relative tolerance of cvode (fmpy's default).
+        atol: absolute tolerance of cvode (None: rtol times each state's nominal, as fmpy).
+        max_step: cvode's largest step (None: duration / 50, as fmpy); the
+            step of rk4 and euler (None: the component's period).
+    """
+
+    model_config = STRICT
+    method: Literal["cvode", "rk4", "euler"] = "cvode"
+    rtol: PositiveFloat = 1e-5
+    atol: PositiveFloat | None = None
+    max_step: PositiveFloat | None = None
+
+
 class FmuSpec(BaseModel):
     """A component that is an FMU (built-in name or path to a .fmu).
 
@@ -71,6 +90,9 @@ class FmuSpec(BaseModel):
             hang then cannot touch the master).
         log: send the FMU's log messages to run.log (warnings and errors
             also to the terminal).
+        interface: "co_simulation" or "model_exchange" (None: co-simulation
+            when the FMU offers it, else model exchange).
+        solver: the integrator of a Model Exchange FMU (None: cvode defaults).
     """
 
     model_config = STRICT
@@ -83,6 +105,8 @@ class FmuSpec(BaseModel):
     deadline: PositiveFloat | None = None
     isolate: bool = False
     log: bool = False
+    interface: Literal["co_simulation", "model_exchange"] | None = None
+    solver: SolverSpec | None = None
 
 
 class PythonSpec(BaseModel):

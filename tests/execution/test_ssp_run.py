@@ -10,7 +10,6 @@ import pytest
 from cosim.cli.app import main
 from cosim.component import Component, Port
 from cosim.execution.run import run_scenario
-from cosim.execution.ssp_export import export_ssp
 from cosim.scenario.loader import load_scenario, scenario_from_dict
 from tests.helpers.ssp import (HEADER, lag_connectors, lag_pair_resources, lag_pair_ssd,
                                write_ssp)

@@ -128,10 +128,13 @@ def test_zip_without_model_description(tmp_path: Path) -> None:
         describe_fmu(make_fmu(tmp_path, None))
 
 
-def test_model_exchange_only_fmu(tmp_path: Path) -> None:
-    fmu = make_fmu(tmp_path, fmi2_xml('<ModelExchange modelIdentifier="Plant"/>'), "me.fmu")
-    with pytest.raises(FmuInterfaceError, match=r"me\.fmu: the FMU does not support co-simulation"):
-        describe_fmu(fmu)
+def test_model_exchange_only_fmu_is_described_for_model_exchange(tmp_path: Path) -> None:
+    fmu = make_fmu(tmp_path, fmi2_xml('<ModelExchange modelIdentifier="PlantME"/>'), "me.fmu")
+    iface = describe_fmu(fmu)
+    assert (iface.fmi_type, iface.model_identifier) == ("ModelExchange", "PlantME")
+    with pytest.raises(FmuInterfaceError,
+                       match=r"me\.fmu: the FMU does not offer co simulation \(it offers: model_exchange\)"):
+        describe_fmu(fmu, kind="co_simulation")
 
 
 @pytest.mark.parametrize("version", ["1.0", "4.0"])

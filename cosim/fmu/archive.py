@@ -1,0 +1,153 @@
+"""Checks of an FMU's archive before t = 0: what `describe_fmu` cannot see in the XML.
+
+`check_archive` holds the .fmu file against what the run will need of it:
+every zip entry passes its CRC check, the model description's GUID (FMI 3
+instantiationToken) is well formed and, when the binary carries one, the
+same as the binary's, and there is a binary for this platform. A source-only
+FMU (C sources, no binary for this platform) is compiled once into a cached
+copy, as fmpy can (`fmpy.build`, CMake and a C compiler); `check_archive`
+then returns that copy's path, which the run loads instead.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import zipfile
+import zlib
+from pathlib import Path
+from typing import Any
+
+from cosim.errors import FmuInterfaceError
+
+_GUID_LIKE = re.compile(rb"\{[0-9A-Fa-f]{8}-[0-9A-Fa-f]{4}-[0-9A-Fa-f]{4}-[0-9A-Fa-f]{4}-"
+                        rb"[0-9A-Fa-f]{12}\}")
+_LIBRARY_SUFFIX = {"linux": ".so", "darwin": ".dylib", "windows": ".dll"}
+
+
+def check_archive(path: Path, interface: Any, local: bool = True) -> Path:
+    """Check an FMU file's archive; the path to load (a compiled copy for a source-only FMU).
+
+    Args:
+        path: the .fmu file.
+        interface: its `cosim.fmu.interface.FmuInterface`.
+        local: the FMU runs on this machine (a worker checks its own platform).
+    Raises:
+        FmuInterfaceError: a corrupted entry, an empty or mismatched GUID, no
+            binary for this platform (naming the platforms the FMU has), or
+            sources that do not compile.
+    """
+    with zipfile.ZipFile(path) as archive:
+        _check_crc(archive, path)
+        names = archive.namelist()
+        binary = _binary_name(interface)
+        _check_guid(interface, path, archive.read(binary) if binary in names else b"")
+    if not local or binary in names:
+        return path
+    platforms = _platforms(names, interface.model_identifier)
+    if not any(n.startswith("sources/") and n.endswith(".c") for n in names):
+        raise FmuInterfaceError(
+            f"{path}: no binary for this platform ({binary}); the FMU has binaries for: "
+            f"{', '.join(platforms) or 'no platform'} and no C sources to compile")
+    return compiled_copy(path, interface, platforms)
+
+
+def _check_crc(archive: zipfile.ZipFile, path: Path) -> None:
+    """Every entry decompresses and matches its CRC-32."""
+    try:
+        bad = archive.testzip()
+    except (zipfile.BadZipFile, zlib.error, EOFError, OSError, NotImplementedError) as exc:
+        raise FmuInterfaceError(f"{path}: corrupted archive: {exc}") from None
+    if bad is not None:
+        raise FmuInterfaceError(f"{path}: corrupted archive: entry {bad!r} fails its CRC "
+                                "check (export or copy the FMU again)")
+
+
+def _check_guid(interface: Any, path: Path, binary: bytes) -> None:
+    """The GUID is not blank and, when the binary holds GUID-like strings, it is one of them."""
+    what = "guid" if interface.fmi_version == "2.0" else "instantiationToken"
+    guid = interface.guid
+    if not guid.strip():
+        raise FmuInterfaceError(f"{path}: modelDescription.xml has an empty {what}")
+    found = set(_GUID_LIKE.findall(binary))
+    if found and _GUID_LIKE.fullmatch(guid.encode()) and guid.encode() not in binary:
+        held = ", ".join(sorted(g.decode() for g in found))
+        raise FmuInterfaceError(f"{path}: {what} mismatch: modelDescription.xml says {guid!r}, "
+                                f"the binary {_binary_name(interface)} holds {held} (the XML "
+                                "and the binary come from different exports)")
+
+
+def _binary_name(interface: Any) -> str:
+    """The archive path of this platform's shared library of the FMU."""
+    import fmpy
+
+    folder = fmpy.platform if interface.fmi_version == "2.0" else fmpy.platform_tuple
+    return f"binaries/{folder}/{interface.model_identifier}{_LIBRARY_SUFFIX[fmpy.system]}"
+
+
+def _platforms(names: list[str], identifier: str) -> list[str]:
+    """The platform folders under binaries/ that hold the model's library."""
+    found = {n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") == 2
+             and Path(n).stem == identifier and Path(n).suffix in _LIBRARY_SUFFIX.values()}
+    return sorted(found)
+
+
+def compile_cache_dir() -> Path:
+    """Where compiled copies of source-only FMUs are kept (beside the built-in FMUs' cache)."""
+    from cosim.fmu.cache import cache_root
+
+    return cache_root() / "compiled-fmus"
+
+
+def compiled_copy(path: Path, interface: Any, platforms: list[str]) -> Path:
+    """The FMU with a binary for this platform compiled from its sources (cached by sha256).
+
+    Args:
+        path: the source-only .fmu.
+        interface: its FmuInterface (sha256, model identifier).
+        platforms: the platforms it has binaries for, for the message.
+    Raises:
+        FmuInterfaceError: CMake or the compiler is missing, or the build fails.
+    """
+    target = compile_cache_dir() / interface.sha256[:20] / path.name
+    if target.is_file():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=target.parent) as work:
+        unzipped, build = Path(work) / "fmu", Path(work) / "build"
+        build.mkdir()
+        with zipfile.ZipFile(path) as archive:
+            archive.extractall(unzipped)
+        problem = _build_binary(unzipped, build)
+        if problem:
+            has = f"binaries for {', '.join(platforms)}" if platforms else "no binary"
+            raise FmuInterfaceError(f"{path}: no binary for this platform ({has}), and its C "
+                                    f"sources cannot be compiled here: {problem}")
+        partial = Path(work) / path.name
+        shutil.make_archive(str(partial.with_suffix("")), "zip", unzipped)
+        os.replace(partial.with_suffix(".zip"), target)
+    return target
+
+
+def _build_binary(unzipped: Path, build: Path) -> str | None:
+    """Compile the FMU's sources into unzipped/binaries/; what went wrong, or None."""
+    import fmpy
+    from fmpy.build import create_cmake_settings
+
+    if shutil.which("cmake") is None:
+        return "cmake is not installed (fmpy builds FMU sources with CMake)"
+    try:
+        create_cmake_settings(unzipped, build)
+    except Exception as exc:  # fmpy raises bare Exceptions for a missing build description
+        return f"no usable build description ({exc})"
+    c_code = Path(fmpy.__file__).parent / "c-code"
+    for command in (["cmake", "-S", str(c_code), "-B", str(build)],
+                    ["cmake", "--build", str(build), "--target", "install"]):
+        done = subprocess.run(command, capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            lines = [l for l in (done.stderr + done.stdout).splitlines() if "rror" in l]
+            return (lines or ["the build failed"])[0].strip()
+    return None
