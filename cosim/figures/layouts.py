@@ -78,7 +78,8 @@ def _errors(axes, runs: Sequence[RunData], with_yc: bool) -> None:
     pan.time_series(axes[1], runs, lambda r: sig.column(r, "controller.psiL"), "psiL",
                     "heading error", "psiL (rad)")
     if with_yc:
-        pan.time_series(axes[2], runs, sig.lateral_cg, "yc", "lateral error at CG", "yc (m)")
+        pan.time_series(axes[2], runs, sig.lateral_cg, "yc", "lateral error at CG",
+                        "yc = yL - ls psiL (m)")
 
 
 def _speed(ax, runs: Sequence[RunData]) -> None:

@@ -35,7 +35,8 @@ def vehicle_xy(run: RunData) -> sig.Series | None:
 
 
 def worst_point(runs: Sequence[RunData]) -> tuple[int, int, float] | None:
-    """Where |yc| is largest over all runs: (run index, tick, |yc|).
+    """Where the CG is farthest from the path over all runs: (run index, tick, |yc_cg|)
+    (the geometric offset, signals.offset_cg: the zoom shows geometry).
 
     Ties go to the earlier run, then the earlier tick; non-finite values are
     skipped. None when no run recorded both yc and the vehicle position.
@@ -45,7 +46,7 @@ def worst_point(runs: Sequence[RunData]) -> tuple[int, int, float] | None:
     """
     best = None
     for i, run in enumerate(runs):
-        yc = sig.lateral_cg(run)
+        yc = sig.offset_cg(run)
         if yc is None or vehicle_xy(run) is None or len(yc[1]) == 0:
             continue
         size = np.abs(yc[1])

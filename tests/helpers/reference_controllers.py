@@ -110,6 +110,6 @@ class ReferenceBackstepping:
         self.mu_hat_dot = 0.0 if limited or vx < gains.v_min else lat.mu_hat_dot
         v3 = lat.V2 + ((c.mu_true - self.mu_hat) ** 2 / (2.0 * c.g_mu) if c.g_mu > 0.0 else 0.0)
         return {"delta": delta, "torque": torque, "yL": preview["offset"], "psiL": psi_l,
-                "yc": at_cg["offset"], "ex": lon.ex, "vx_ref": at_cg["v"], "rho": preview["kappa"],
+                "yc": preview["offset"] - gains.ls * psi_l, "yc_cg": at_cg["offset"], "ex": lon.ex, "vx_ref": at_cg["v"], "rho": preview["kappa"],
                 "mu_hat": self.mu_hat, "alpha_vy": float(lat.alpha[0]), "alpha_r": float(lat.alpha[1]),
                 "z_vy": float(lat.z[0]), "z_r": float(lat.z[1]), "V": lon.V, "V2": lat.V2, "V3": v3}
