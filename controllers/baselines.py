@@ -64,7 +64,8 @@ class _BaselineController(Component):
         if window is None:
             return empty_window_outputs(self.outputs, self.steering.last)
         x, y, psi, vx = plant[:4]
-        y_l, psi_l, y_c, y_cg, _, _, vx_ref, vx_ref_dot = path_errors(window, x, y, psi, vx, self.ls)
+        y_l, psi_l, y_c, y_cg, _, _, vx_ref, vx_ref_dot, *_ = path_errors(
+            window, x, y, psi, vx, self.ls)
         ex = vx - vx_ref
         torque = self.speed.torque(ex, vx_ref_dot, dt)
         delta = self.steering.apply(self.steer(plant, window), dt)

@@ -137,16 +137,22 @@ def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,
         x, y, psi, vx: the measured CG position, yaw angle and speed.
         ls: preview distance [m].
     Returns:
-        (yL, psiL, yc, yc_cg, rho, rho_dot, vx_ref, vx_ref_dot), see the module docstring.
+        (yL, psiL, yc, yc_cg, rho, rho_dot, vx_ref, vx_ref_dot, rho_cg, rho_cg_dot, turn,
+        bend): rho and rho_dot at the preview point's foot, the reference speed and its
+        rate, the curvature and its rate at the CG's foot, the path's heading change
+        from the CG's foot to the preview point's and the preview foot's offset from
+        the CG foot's tangent (left positive); see the module docstring.
     """
     at_cg = foot(w, x, y, 0)
     if w.best[1] < 0:       # a new window: start the preview point's search about ls ahead of the CG's
         w.best[1] = w.best[0] + round(ls / w.mean_chord)
     preview = foot(w, x + ls * math.cos(psi), y + ls * math.sin(psi), 1)
     psi_l = (psi - preview[4] + math.pi) % (2.0 * math.pi) - math.pi     # wrap_angle, inlined
-    y_l = preview[3]
+    y_l, h_cg = preview[3], at_cg[4]
+    turn = (preview[4] - h_cg + math.pi) % (2.0 * math.pi) - math.pi
+    bend = math.cos(h_cg) * (preview[2] - at_cg[2]) - math.sin(h_cg) * (preview[1] - at_cg[1])
     return (y_l, psi_l, y_l - ls * psi_l, at_cg[3], preview[5], preview[6] * vx, at_cg[7],
-            at_cg[8])
+            at_cg[8], at_cg[5], at_cg[6] * vx, turn, bend)
 
 
 class StepClock:
