@@ -29,10 +29,12 @@ def _lines(ax):
     return {line.get_label(): line for line in ax.get_lines()}
 
 
-def test_track_layout_has_nine_panels_with_the_run_data(tmp_path):
+def test_track_layout_has_eleven_panels_with_the_run_data(tmp_path):
     run = load_run(lane_change_run(tmp_path / "r"))
     fig, layout = build_figure([run], "track")
-    assert layout == "track" and len(fig.axes) == 9
+    assert layout == "track" and len([ax for ax in fig.axes if ax.axison]) == 11
+    for title in ("speed error", "external forces", "steering angle"):
+        assert title in _axes_by_title(fig)
     axes = _axes_by_title(fig)
     yc = _lines(axes["lateral error at CG"])["yc"]
     np.testing.assert_array_equal(yc.get_ydata(), run.signal("controller.yc"))
@@ -41,13 +43,13 @@ def test_track_layout_has_nine_panels_with_the_run_data(tmp_path):
     np.testing.assert_array_equal(mu["mu_hat"].get_ydata(), run.signal("controller.mu_hat"))
     speed = _lines(axes["speed tracking"])
     assert set(speed) == {"vx", "vx_ref"}
-    assert all(ax.get_xlabel() and ax.get_ylabel() for ax in fig.axes)
+    assert all(ax.get_xlabel() and ax.get_ylabel() for ax in fig.axes if ax.axison)
 
 
-def test_manoeuvre_layout_has_seven_panels_with_both_trajectories(tmp_path):
+def test_manoeuvre_layout_has_nine_panels_with_both_trajectories(tmp_path):
     run = load_run(lane_change_run(tmp_path / "r"))
     fig, layout = build_figure([run])
-    assert layout == "manoeuvre" and len(fig.axes) == 7
+    assert layout == "manoeuvre" and len(fig.axes) == 9
     axes = _axes_by_title(fig)
     road = axes["road and planned trajectories"]
     alt = [line for line in road.get_lines() if line.get_color() == "tab:orange"]
@@ -99,7 +101,7 @@ def test_missing_signals_give_notes_not_errors(tmp_path):
     fig, _ = build_figure([load_run(run)])
     notes = [txt.get_text() for ax in fig.axes for txt in ax.texts]
     assert "not recorded: yL" in notes and "not recorded: delta" in notes
-    assert len(fig.axes) == 9
+    assert len(fig.axes) == 12
 
 
 def test_compare_two_runs_overlays_and_tabulates(tmp_path):
@@ -405,3 +407,34 @@ def test_a_road_that_cannot_be_rebuilt_is_a_note_in_the_map(tmp_path):
     notes = [text.get_text() for text in road_ax.texts]
     assert notes == ["road not drawn: components.plan.parameters.road.builder: unknown road "
                      "'no_such_road' (known: satory_standin, two_lane)"]
+
+
+def test_speed_layout_gives_each_run_its_own_speed_and_error_panels(tmp_path):
+    runs = [load_run(lane_change_run(tmp_path / "a")), load_run(lane_change_run(tmp_path / "b"))]
+    fig, layout = build_figure(runs, "speed")
+    assert layout == "speed" and len(fig.axes) == 6
+    errors = [ax for ax in fig.axes if ax.get_title() == "speed error"]
+    assert len(errors) == 2
+    for ax, run in zip(errors, runs):
+        np.testing.assert_array_equal(_lines(ax)["ex"].get_ydata(), run.signal("controller.ex"))
+    drag = _lines([ax for ax in fig.axes if ax.get_title() == "external forces"][0])["Fwx (aero drag)"]
+    vx = runs[0].signal("vehicle.vx")
+    np.testing.assert_allclose(drag.get_ydata(), -0.42 * vx * np.abs(vx))
+
+
+def test_manoeuvre_map_is_equal_aspect_on_the_manoeuvre_with_a_steering_inset(tmp_path):
+    t = np.arange(0, 601) * 0.01
+    state = ((t >= 2.0) & (t < 4.0)).astype(float)
+    path = lane_change_run(tmp_path / "r")
+    run = load_run(path)
+    cols = {name: run.columns[name] for name in run.columns if name != "time"}
+    cols["planner.manoeuvre_state"] = state
+    run = load_run(write_run(tmp_path / "s", t, cols, {"name": "lane_change"}))
+    fig, _ = build_figure([run], "manoeuvre")
+    road = _axes_by_title(fig)["road and planned trajectories"]
+    assert road.get_aspect() == 1.0
+    assert road.get_xlim() == pytest.approx((20.0 - 30.0, 40.0 + 30.0))
+    steering = _axes_by_title(fig)["steering angle"]
+    insets = [child for child in steering.get_children() if hasattr(child, "get_title")
+              and child.get_title() == "manoeuvre start"]
+    assert len(insets) == 1
