@@ -311,7 +311,7 @@ def test_zoom_is_sized_from_the_largest_yc_and_shows_the_gap(tmp_path):
 
     run = load_run(_offset_run(tmp_path / "r", 2.5, 0.02))
     fig, _ = build_figure([run], "track")
-    ax = _axes_by_title(fig)["zoom on tracking (largest |yc|)"]
+    ax = _axes_by_title(fig)["zoom on tracking (largest |yc_cg|)"]
     half = ZOOM_FACTOR * 0.02
     np.testing.assert_allclose(ax.get_xlim(), (-half, half))
     np.testing.assert_allclose(ax.get_ylim(), (-half, half))
@@ -319,7 +319,7 @@ def test_zoom_is_sized_from_the_largest_yc_and_shows_the_gap(tmp_path):
     planned = lines["planned path (window at t = 2.50 s)"]   # the window recorded at the worst tick
     np.testing.assert_allclose(planned.get_xdata(), 25.0 + 0.25 * np.arange(64) - 2.0 - 25.0)
     np.testing.assert_allclose(planned.get_ydata(), -0.02)   # the path lies |yc| to the right
-    marker = lines["|yc| = 2.00 cm at t = 2.50 s"]
+    marker = lines["|yc_cg| = 2.00 cm at t = 2.50 s"]
     assert list(marker.get_xdata()) == [0.0] and list(marker.get_ydata()) == [0.0]
     vehicle = lines["vehicle"]
     inside = np.isfinite(vehicle.get_xdata())
@@ -333,7 +333,7 @@ def test_zoom_box_has_a_minimum_for_a_run_without_error(tmp_path):
 
     assert zoom_half_width(0.0) == ZOOM_MIN_HALF_WIDTH == zoom_half_width(ZOOM_MIN_HALF_WIDTH / 5)
     run = load_run(_offset_run(tmp_path / "r", 2.5, 0.0))
-    ax = _axes_by_title(build_figure([run], "track")[0])["zoom on tracking (largest |yc|)"]
+    ax = _axes_by_title(build_figure([run], "track")[0])["zoom on tracking (largest |yc_cg|)"]
     np.testing.assert_allclose(ax.get_xlim(), (-ZOOM_MIN_HALF_WIDTH, ZOOM_MIN_HALF_WIDTH))
 
 
@@ -345,16 +345,16 @@ def test_compare_zoom_goes_to_the_worst_point_over_all_runs(tmp_path):
     assert worst_point([small, large]) == (1, 300, 0.03)
     assert worst_point([large, small]) == (0, 300, 0.03)
     fig, _ = build_figure([small, large], "track")
-    ax = _axes_by_title(fig)["zoom on tracking (largest |yc|)"]
+    ax = _axes_by_title(fig)["zoom on tracking (largest |yc_cg|)"]
     assert ax.get_xlabel() == "x - 30.00 (m)"             # large's worst tick, not small's
     labels = set(_lines(ax))
-    assert {"small: vehicle", "large: vehicle", "|yc| = 3.00 cm at t = 3.00 s (large)"} <= labels
+    assert {"small: vehicle", "large: vehicle", "|yc_cg| = 3.00 cm at t = 3.00 s (large)"} <= labels
 
 
 def test_zoom_without_yc_says_so(tmp_path):
     t = np.arange(3.0)
     run = load_run(write_run(tmp_path / "r", t, {"vehicle.x": t, "vehicle.y": 0 * t}))
-    ax = _axes_by_title(build_figure([run], "track")[0])["zoom on tracking (largest |yc|)"]
+    ax = _axes_by_title(build_figure([run], "track")[0])["zoom on tracking (largest |yc_cg|)"]
     assert [txt.get_text() for txt in ax.texts] == ["not recorded: yc, vehicle.x, vehicle.y"]
 
 
