@@ -28,8 +28,8 @@ REPO = SCENARIO_DIR.parent
 DOCS = {REPO / "README.md": ("summary",), SCENARIO_DIR / "README.md": ("summary", "satory_cost", "full")}
 SUMMARY_PLANT = "Vehicle8DOF"
 #: scenarios of the summary table, in order (obstacle_blocked and open_loop have no lateral error)
-SUMMARY_SCENARIOS = ("satory_nominal", "satory_disturbed", "lane_keeping", "lane_change",
-                     "obstacle_avoidance", "friction_drop", "iso3888_2")
+SUMMARY_SCENARIOS = ("satory_nominal", "satory_disturbed", "opendrive_loop", "lane_keeping",
+                     "lane_change", "obstacle_avoidance", "friction_drop", "iso3888_2")
 ADAPTIVE = ("bs_robust_ff", "bs_adaptive_ff", "bs_adaptive_faithful")
 #: (row label, scenario, overrides): Satory with one disturbance at a time, on SUMMARY_PLANT
 SATORY_VARIANTS = (
