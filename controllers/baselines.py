@@ -5,7 +5,8 @@ measurements, the recommended ref_* window; delta, torque), so a scenario can
 swap them in its YAML. Both share the PI speed loop with feed-forward of the
 reference acceleration (control_common.SpeedPI) and the same actuator limits.
 For comparison plots they output the same path errors: yL and psiL at the
-preview point ls ahead of the CG (not used by their laws), yc at the CG, ex,
+preview point ls ahead of the CG (not used by their laws), yc = yL - ls psiL and
+yc_cg (the CG's geometric offset) at the CG, ex,
 vx_ref.
 
 Pure Pursuit (geometric, rear axle): the target is the path point a look-ahead
@@ -63,11 +64,12 @@ class _BaselineController(Component):
         if window is None:
             return empty_window_outputs(self.outputs, self.steering.last)
         x, y, psi, vx = plant[:4]
-        y_l, psi_l, y_c, _, _, vx_ref, vx_ref_dot = path_errors(window, x, y, psi, vx, self.ls)
+        y_l, psi_l, y_c, y_cg, _, _, vx_ref, vx_ref_dot, *_ = path_errors(
+            window, x, y, psi, vx, self.ls)
         ex = vx - vx_ref
         torque = self.speed.torque(ex, vx_ref_dot, dt)
         delta = self.steering.apply(self.steer(plant, window), dt)
-        return finite_outputs(OUTPUT_NAMES, (delta, torque, y_l, psi_l, y_c, ex, vx_ref), t)
+        return finite_outputs(OUTPUT_NAMES, (delta, torque, y_l, psi_l, y_c, y_cg, ex, vx_ref), t)
 
     def steer(self, plant: tuple[float, ...], window: PreparedWindow) -> float:
         """Steering command before limits from (x, y, psi, vx, vy, r) (subclasses)."""

@@ -11,10 +11,11 @@ Path errors: the preview point P = CG + ls [cos psi, sin psi] is projected on
 the window; yL is P's signed offset (left of the path positive), psiL =
 psi - path heading at P's foot (wrapped), rho the curvature there and
 rho_dot = dkappa/ds * vx. To first order these obey the paper's error model
-(yL_dot = vy + vx psiL + ls r, psiL_dot = r - vx rho). yc is the CG's own
-signed offset from its foot point (the paper's yL - ls psiL is its linear
-approximation, which misses ls^2 rho / 2 on a curve). The reference speed and
-acceleration are read at the CG's foot point.
+(yL_dot = vy + vx psiL + ls r, psiL_dot = r - vx rho). Two lateral errors at
+the CG: yc = yL - ls psiL, the paper's definition (Fig. 4.7), and yc_cg, the
+CG's own signed offset from its foot point on the path (geometric; yc is its
+linear approximation, which misses about ls^2 rho / 2 on a curve). The
+reference speed and acceleration are read at the CG's foot point.
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ COMMAND_OUTPUTS: tuple[Port, ...] = (
     Port("torque", unit="N.m", description="total wheel torque command"),
     Port("yL", unit="m", description="lateral error at the preview point, left positive"),
     Port("psiL", unit="rad", description="heading error at the preview point"),
-    Port("yc", unit="m", description="lateral error at the CG, left positive"),
+    Port("yc", unit="m", description="lateral error at the CG as the paper defines it, yL - ls psiL"),
+    Port("yc_cg", unit="m", description="the CG's signed geometric offset from the path, left positive"),
     Port("ex", unit="m/s", description="speed error vx - vx_ref"),
     Port("vx_ref", unit="m/s", description="reference speed at the CG's foot point"),
 )
@@ -135,14 +137,22 @@ def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,
         x, y, psi, vx: the measured CG position, yaw angle and speed.
         ls: preview distance [m].
     Returns:
-        (yL, psiL, yc, rho, rho_dot, vx_ref, vx_ref_dot), see the module docstring.
+        (yL, psiL, yc, yc_cg, rho, rho_dot, vx_ref, vx_ref_dot, rho_cg, rho_cg_dot, turn,
+        bend): rho and rho_dot at the preview point's foot, the reference speed and its
+        rate, the curvature and its rate at the CG's foot, the path's heading change
+        from the CG's foot to the preview point's and the preview foot's offset from
+        the CG foot's tangent (left positive); see the module docstring.
     """
     at_cg = foot(w, x, y, 0)
     if w.best[1] < 0:       # a new window: start the preview point's search about ls ahead of the CG's
         w.best[1] = w.best[0] + round(ls / w.mean_chord)
     preview = foot(w, x + ls * math.cos(psi), y + ls * math.sin(psi), 1)
     psi_l = (psi - preview[4] + math.pi) % (2.0 * math.pi) - math.pi     # wrap_angle, inlined
-    return preview[3], psi_l, at_cg[3], preview[5], preview[6] * vx, at_cg[7], at_cg[8]
+    y_l, h_cg = preview[3], at_cg[4]
+    turn = (preview[4] - h_cg + math.pi) % (2.0 * math.pi) - math.pi
+    bend = math.cos(h_cg) * (preview[2] - at_cg[2]) - math.sin(h_cg) * (preview[1] - at_cg[1])
+    return (y_l, psi_l, y_l - ls * psi_l, at_cg[3], preview[5], preview[6] * vx, at_cg[7],
+            at_cg[8], at_cg[5], at_cg[6] * vx, turn, bend)
 
 
 class StepClock:

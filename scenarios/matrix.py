@@ -2,6 +2,7 @@
 
     python -m scenarios.matrix --out DIR [--scenario NAME ...] [--controller NAME ...]
                                [--plant NAME ...] [--set PATH=VALUE ...]
+    python -m scenarios.matrix --out DIR --write-docs    # and rewrite the READMEs' tables
 
 Each combination is the scenario file with two overrides: the plant
 (`components.vehicle.fmu`) and the controller component (the whole
@@ -52,7 +53,7 @@ CONTROLLERS: dict[str, dict] = {
                      "parameters": {}},
 }
 NO_CONTROLLER = "none"
-COLUMNS = ("rms_yc", "max_abs_yc", "rms_yL", "rms_psiL", "max_abs_psiL", "rms_ex", "max_abs_ex",
+COLUMNS = ("rms_yc", "max_abs_yc", "rms_yc_cg", "max_abs_yc_cg", "rms_yL", "rms_psiL", "max_abs_psiL", "rms_ex", "max_abs_ex",
            "max_abs_delta", "max_abs_delta_rate", "max_abs_ay", "mu_true_final", "mu_hat_final",
            "cone_hits")
 
@@ -176,6 +177,23 @@ def _cell(value: float | int | None) -> str:
     return str(value) if isinstance(value, int) else f"{value:.4g}"
 
 
+def markdown_rows(rows: Sequence[MatrixRow]) -> list[str]:
+    """The full results table as markdown lines (header, rule, one line per run).
+
+    Columns: the metrics of COLUMNS that some row has, in that order.
+    """
+    shown = [c for c in COLUMNS if any(c in r.metrics for r in rows)]
+    return (["| " + " | ".join(["scenario", "controller", "plant", "status", *shown]) + " |",
+             "|" + "---|" * (4 + len(shown))] + [row_line(r, shown) for r in rows])
+
+
+def row_line(row: MatrixRow, columns: Sequence[str]) -> str:
+    """One run as a markdown table line with the given metric columns."""
+    status = row.status if row.status == "ok" else f"failed: {row.error[:80]}"
+    return "| " + " | ".join([row.scenario, row.controller, row.plant, status,
+                              *(_cell(row.metrics.get(c)) for c in columns)]) + " |"
+
+
 def write_tables(rows: Sequence[MatrixRow], out: Path) -> tuple[Path, Path]:
     """Write results.csv and results.md into `out`; returns their paths.
 
@@ -193,13 +211,7 @@ def write_tables(rows: Sequence[MatrixRow], out: Path) -> tuple[Path, Path]:
             writer.writerow([r.scenario, r.controller, r.plant, r.status,
                              *(repr(r.metrics[c]) if c in r.metrics else "" for c in COLUMNS),
                              f"{r.wall_s:.3f}", r.error])
-    shown = [c for c in COLUMNS if any(c in r.metrics for r in rows)]
-    lines = ["| " + " | ".join(["scenario", "controller", "plant", "status", *shown]) + " |",
-             "|" + "---|" * (4 + len(shown))]
-    for r in rows:
-        status = r.status if r.status == "ok" else f"failed: {r.error[:80]}"
-        lines.append("| " + " | ".join([r.scenario, r.controller, r.plant, status,
-                                        *(_cell(r.metrics.get(c)) for c in shown)]) + " |")
+    lines = markdown_rows(rows)
     md_path.write_text("\n".join(lines) + "\n")
     return csv_path, md_path
 
@@ -251,9 +263,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--plant", action="append", default=[], help=f"plant: {', '.join(PLANTS)}")
     parser.add_argument("--set", dest="extra", action="append", default=[],
                         help="override PATH=VALUE applied to every run (repeatable)")
+    parser.add_argument("--write-docs", action="store_true",
+                        help="run everything and rewrite the generated tables of README.md and "
+                             "scenarios/README.md (no selection or --set allowed)")
     args = parser.parse_args(argv)
+    if args.write_docs and (args.scenario or args.controller or args.plant or args.extra):
+        parser.error("--write-docs runs the whole matrix: no --scenario, --controller, --plant or --set")
     rows = run_matrix(args.out, args.scenario, args.controller, args.plant, args.extra)
     print(f"tables: {args.out / 'results.md'}, {args.out / 'results.csv'}")
+    if args.write_docs:
+        from scenarios import doc_tables
+
+        variants = doc_tables.run_satory_variants(args.out)
+        for path in doc_tables.write_docs(doc_tables.blocks(rows, variants)):
+            print(f"rewrote the generated tables of {path}")
     return 1 if any(r.status != "ok" for r in rows) else 0
 
 

@@ -139,18 +139,19 @@ class BacksteppingController(Component):
         if window is None:
             return empty_window_outputs(self.outputs, self.steering.last) | {"mu_hat": self.mu_hat}
         mu_hat = self.mu_hat = min(self.mu_max, max(self.mu_min, self.mu_hat + dt * self.mu_hat_dot))
-        y_l, psi_l, y_c, rho, rho_dot, vx_ref, vx_ref_dot = path_errors(window, x, y, psi, vx, self.gains.ls)
+        (y_l, psi_l, y_c, y_cg, rho, rho_dot, vx_ref, vx_ref_dot,
+         *at_cg) = path_errors(window, x, y, psi, vx, self.gains.ls)
         # eq. 7 (longitudinal_law), then the nominal model's vx_dot with the applied torque
         m, me, rw = self.params.m, self._me, self.params.Rw
         ex = vx - vx_ref
         torque = self.limits.torque(rw * (-self._kxgx * ex - m * vy * r + me * vx_ref_dot))
         vx_dot = (torque / rw + m * vy * r) / me
         command, alpha_vy, alpha_r, z_vy, z_r, mu_hat_dot, v2 = self.lateral.command(
-            y_l, psi_l, vy, r, vx, vx_dot, rho, rho_dot, mu_hat, self.g_mu)
+            y_l, psi_l, vy, r, vx, vx_dot, rho, rho_dot, mu_hat, self.g_mu, *at_cg)
         delta = self.steering.apply(command, dt)
         limited = abs(delta - command) > 1e-12
         self.mu_hat_dot = 0.0 if limited or vx < self.gains.v_min else mu_hat_dot
         v3 = v2 + ((self.mu_true - mu_hat) ** 2 / (2.0 * self.g_mu) if self.g_mu > 0.0 else 0.0)
         return finite_outputs(OUTPUT_NAMES, (
-            delta, torque, y_l, psi_l, y_c, ex, vx_ref, rho, mu_hat, alpha_vy, alpha_r, z_vy, z_r,
+            delta, torque, y_l, psi_l, y_c, y_cg, ex, vx_ref, rho, mu_hat, alpha_vy, alpha_r, z_vy, z_r,
             0.5 * me * ex * ex, v2, v3), t)

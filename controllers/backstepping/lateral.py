@@ -24,7 +24,18 @@ e~ = e - e_r:
   rho and heading error psiL at the preview point, the preview point's offset
   is yL = ls psiL + ls^2 rho / 2 to second order (the linear model's
   yc = yL - ls psiL ignores the path's bending between CG and preview point).
-  At that equilibrium v lies in the span of B, so the extraction is exact and
+  ff_target "cg" takes each part of the equilibrium where it lives: the car's
+  sideslip beta = vy / vx and yaw rate from the curvature at the CG (rho_c),
+  the path's heading change `turn` and bending `bend` between the CG's foot
+  and the preview point's from the window's geometry:
+  psiL_r = -beta - turn, yL_r = -ls beta - bend, with the kinematic rates
+  turn_dot = vx (rho_p - rho_c), bend_dot = vx (turn - ls rho_c). On a
+  constant curvature (turn = ls rho, bend = ls^2 rho / 2) this is the
+  equilibrium above; where the curvature changes (the preview point entering
+  a bend or a lane change ahead of the CG) it is the CG-on-path state of the
+  error model, whereas the constant-curvature equilibrium at rho_p asked for
+  the bend's outward heading error while the CG was still on the straight:
+  a steer the wrong way first (scenarios/README.md, counter-steer). At that equilibrium v lies in the span of B, so the extraction is exact and
   there is no steady error; the deviation dynamics are those of the straight
   road. psiL cannot vanish on a curve: yL_dot = 0 needs vy + vx psiL + ls r = 0.
 
@@ -174,7 +185,14 @@ class LateralGains:
 
 @dataclass(frozen=True)
 class LateralMeasurement:
-    """What the law reads: errors, body velocities, speed derivative, road curvature and its rate."""
+    """What the law reads: errors, body velocities, speed derivative, road curvature and its rate.
+
+    rho, rho_dot are at the preview point's foot; rho_cg, rho_cg_dot at the
+    CG's; turn is the path's heading change from the CG's foot to the preview
+    point's, bend the preview foot's offset from the CG foot's tangent line
+    (left positive). rho_cg None: a constant curvature rho between the two
+    (turn = ls rho, bend = ls^2 rho / 2).
+    """
 
     y_l: float
     psi_l: float
@@ -184,6 +202,10 @@ class LateralMeasurement:
     vx_dot: float
     rho: float
     rho_dot: float
+    rho_cg: float | None = None
+    rho_cg_dot: float = 0.0
+    turn: float = 0.0
+    bend: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -248,15 +270,28 @@ def path_reference(m: LateralMeasurement, vx: float, params: VehicleParams, gain
     step = 1e-4 * vx
     unit_dvx = (steady_state_per_curvature(params, vx + step, mu_hat, ls)
                 - steady_state_per_curvature(params, vx - step, mu_hat, ls)) / (2.0 * step)
-    unit_dot = unit * rho_dot + unit_dvx * rho * vx_dot
-    psi_r, psi_r_dot = unit[0] * rho, unit_dot[0]
     if gains.ff_target == "cg":
-        # CG on the path: geometric yL = ls psiL + ls^2 rho / 2 to second order (module docstring).
-        y_r, y_r_dot = ls * psi_r + 0.5 * ls * ls * rho, ls * psi_r_dot + 0.5 * ls * ls * rho_dot
-    else:
-        y_r, y_r_dot = 0.0, 0.0
-    return PathReference(np.array([y_r, psi_r]), np.array([y_r_dot, psi_r_dot]),
+        return _cg_reference(m, vx, unit, unit_dvx, ls)
+    unit_dot = unit * rho_dot + unit_dvx * rho * vx_dot
+    return PathReference(np.array([0.0, unit[0] * rho]), np.array([0.0, unit_dot[0]]),
                          unit[1:3] * rho, unit_dot[1:3])
+
+
+def _cg_reference(m: LateralMeasurement, vx: float, unit: np.ndarray, unit_dvx: np.ndarray,
+                  ls: float) -> PathReference:
+    """ff_target "cg": the CG on the path, curvature rho_c at the CG (module docstring)."""
+    if m.rho_cg is None:
+        rc, rc_dot, turn, bend = m.rho, m.rho_dot, ls * m.rho, 0.5 * ls * ls * m.rho
+    else:
+        rc, rc_dot, turn, bend = m.rho_cg, m.rho_cg_dot, m.turn, m.bend
+    x_r = unit[1:3] * rc
+    x_r_dot = unit[1:3] * rc_dot + unit_dvx[1:3] * rc * m.vx_dot
+    beta, beta_dot = x_r[0] / vx, (x_r_dot[0] - x_r[0] / vx * m.vx_dot) / vx
+    psi_r = -beta - turn
+    psi_r_dot = -beta_dot - vx * (m.rho - rc)
+    y_r = -ls * beta - bend
+    y_r_dot = -ls * beta_dot - vx * (turn - ls * rc)
+    return PathReference(np.array([y_r, psi_r]), np.array([y_r_dot, psi_r_dot]), x_r, x_r_dot)
 
 
 def lateral_law(m: LateralMeasurement, mu_hat: float, params: VehicleParams, gains: LateralGains,
@@ -349,8 +384,11 @@ class ScalarLateralLaw:
         return -(vy + self.ls * vx) / vx, vy, vx
 
     def reference(self, vx: float, vx_dot: float, rho: float, rho_dot: float,
-                  mu_hat: float) -> tuple[float, ...]:
-        """path_reference as (yr, psir, yr_dot, psir_dot, vyr, rr, vyr_dot, rr_dot); vx already floored."""
+                  mu_hat: float, at_cg: tuple[float, float, float, float]) -> tuple[float, ...]:
+        """path_reference as (yr, psir, yr_dot, psir_dot, vyr, rr, vyr_dot, rr_dot); vx already floored.
+
+        at_cg: (rho_cg, rho_cg_dot, turn, bend), see LateralMeasurement.
+        """
         ls = self.ls
         if not self.feedforward:
             kin, kin_dot = vx * rho, vx_dot * rho + vx * rho_dot
@@ -360,27 +398,37 @@ class ScalarLateralLaw:
         p0, p1, p2 = self._unit(vx + step, mu_hat)
         n0, n1, n2 = self._unit(vx - step, mu_hat)
         two = 2.0 * step
+        if self.at_cg:      # _cg_reference, written out
+            rho_cg, rho_cg_dot, turn, bend = at_cg
+            f = rho_cg * vx_dot
+            vy_r, r_r = u1 * rho_cg, u2 * rho_cg
+            vy_r_dot = u1 * rho_cg_dot + (p1 - n1) / two * f
+            r_r_dot = u2 * rho_cg_dot + (p2 - n2) / two * f
+            beta = vy_r / vx
+            beta_dot = (vy_r_dot - beta * vx_dot) / vx
+            psi_r, psi_r_dot = -beta - turn, -beta_dot - vx * (rho - rho_cg)
+            y_r, y_r_dot = -ls * beta - bend, -ls * beta_dot - vx * (turn - ls * rho_cg)
+            return y_r, psi_r, y_r_dot, psi_r_dot, vy_r, r_r, vy_r_dot, r_r_dot
         f = rho * vx_dot
         dot0 = u0 * rho_dot + (p0 - n0) / two * f
         dot1 = u1 * rho_dot + (p1 - n1) / two * f
         dot2 = u2 * rho_dot + (p2 - n2) / two * f
-        psi_r = u0 * rho
-        if self.at_cg:
-            y_r, y_r_dot = ls * psi_r + 0.5 * ls * ls * rho, ls * dot0 + 0.5 * ls * ls * rho_dot
-        else:
-            y_r, y_r_dot = 0.0, 0.0
-        return y_r, psi_r, y_r_dot, dot0, u1 * rho, u2 * rho, dot1, dot2
+        return 0.0, u0 * rho, 0.0, dot0, u1 * rho, u2 * rho, dot1, dot2
 
     def command(self, y_l: float, psi_l: float, vy: float, r: float, vx: float, vx_dot: float,
-                rho: float, rho_dot: float, mu_hat: float, g_mu: float) -> tuple[float, ...]:
+                rho: float, rho_dot: float, mu_hat: float, g_mu: float, rho_cg: float | None = None,
+                rho_cg_dot: float = 0.0, turn: float = 0.0, bend: float = 0.0) -> tuple[float, ...]:
         """lateral_law as (delta, alpha_vy, alpha_r, z_vy, z_r, mu_hat_dot, V2).
 
-        Args: as LateralMeasurement's fields (vx measured, floored here), then mu_hat and g_mu.
+        Args: as LateralMeasurement's fields (vx measured, floored here), with mu_hat
+        and g_mu after rho_dot.
         """
         vx_measured, vx = vx, max(vx, self.v_min)
         ls, k1, k2 = self.ls, self.k1, self.k2
+        if rho_cg is None:
+            rho_cg, rho_cg_dot, turn, bend = rho, rho_dot, ls * rho, 0.5 * ls * ls * rho
         y_r, psi_r, y_r_dot, psi_r_dot, vy_r, r_r, vy_r_dot, r_r_dot = self.reference(
-            vx, vx_dot, rho, rho_dot, mu_hat)
+            vx, vx_dot, rho, rho_dot, mu_hat, (rho_cg, rho_cg_dot, turn, bend))
         e0, e1 = y_l - y_r, psi_l - psi_r
         ed0, ed1 = vx * psi_l + vy + ls * r - y_r_dot, r - vx * rho - psi_r_dot
         u0, u1 = -k1 * e0 - vx * e1, -k2 * e1                  # g^-1 = [[1, -ls], [0, 1]]

@@ -10,6 +10,12 @@ whose signals the run did not record is left out, with a note saying why
 Definitions (t0 = first tick + `metrics.skip_s` from the scenario, default 0):
 - rms_* : time-weighted RMS, sqrt(integral(v^2 dt) / (t_end - t0)), trapezoid rule.
 - max_abs_* : max |v| over the ticks from t0.
+- yc : the lateral error at the CG as the paper defines it (Fig. 4.7),
+  yL - ls psiL: controller.yc, else computed from controller.yL and psiL.
+- yc_cg : the CG's geometric offset from the path (signed distance to its
+  foot point, left positive): controller.yc_cg. yc is its linear
+  approximation; on a curve of curvature rho they differ by about
+  ls^2 rho / 2 plus the heading error's share (see controllers/tracking.py).
 - max_abs_delta_rate : max |finite difference of controller.delta| over time,
   taken at the controller's period (`components.controller.period`) so a
   held output is not read as a jump within one tick.
@@ -35,7 +41,7 @@ from cosim.analysis.rundata import (AnalysisError, RunData, load_run, loaded_run
                                    read_json_object)
 
 METRIC_NAMES = (
-    "rms_yc", "max_abs_yc", "rms_yL", "max_abs_yL", "rms_psiL", "max_abs_psiL",
+    "rms_yc", "max_abs_yc", "rms_yc_cg", "max_abs_yc_cg", "rms_yL", "max_abs_yL", "rms_psiL", "max_abs_psiL",
     "rms_ex", "max_abs_ex", "max_abs_delta", "max_abs_delta_rate", "max_abs_ay",
     "mu_true_final", "mu_hat_final", "cone_hits",
 )
@@ -72,7 +78,8 @@ def rms(t: np.ndarray, v: np.ndarray) -> float:
 
 
 def lateral_error_cg(run: RunData) -> np.ndarray | None:
-    """yc: controller.yc, else yL - ls psiL with the controller's ls (default 5 m)."""
+    """yc, the paper's lateral error at the CG: controller.yc, else yL - ls psiL
+    with the controller's ls (default 5 m)."""
     yc = run.signal("controller.yc")
     if yc is not None:
         return yc
@@ -139,13 +146,14 @@ def _delta_rate(run: RunData, mask: np.ndarray, report: MetricsReport) -> None:
 def _series_metrics(run: RunData, mask: np.ndarray, report: MetricsReport) -> None:
     series = {
         "yc": (lateral_error_cg(run), "controller.yc (or controller.yL, controller.psiL)"),
+        "yc_cg": (run.signal("controller.yc_cg"), "controller.yc_cg"),
         "yL": (run.signal("controller.yL"), "controller.yL"),
         "psiL": (run.signal("controller.psiL"), "controller.psiL"),
         "ex": (speed_error(run), "controller.ex (or vehicle.vx and a speed reference)"),
         "delta": (run.signal("controller.delta"), "controller.delta"),
         "ay": (run.signal("vehicle.ay"), "vehicle.ay"),
     }
-    with_rms = {"yc", "yL", "psiL", "ex"}
+    with_rms = {"yc", "yc_cg", "yL", "psiL", "ex"}
     t = run.time[mask]
     for key, (values, source) in series.items():
         names = ([f"rms_{key}"] if key in with_rms else []) + [f"max_abs_{key}"]

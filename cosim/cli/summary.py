@@ -18,8 +18,10 @@ from rich.table import Table
 # unit and quantity of each metric of cosim.analysis.metrics (METRIC_NAMES), in that order;
 # the name's prefix says the statistic (rms_: time-weighted RMS, max_abs_: max |.|)
 METRIC_INFO: dict[str, tuple[str, str]] = {
-    "rms_yc": ("m", "lateral error at the CG"),
-    "max_abs_yc": ("m", "lateral error at the CG"),
+    "rms_yc": ("m", "lateral error at the CG, yL - ls psiL (paper, Fig. 4.7)"),
+    "max_abs_yc": ("m", "lateral error at the CG, yL - ls psiL (paper, Fig. 4.7)"),
+    "rms_yc_cg": ("m", "the CG's geometric offset from the path"),
+    "max_abs_yc_cg": ("m", "the CG's geometric offset from the path"),
     "rms_yL": ("m", "lateral error at the preview point"),
     "max_abs_yL": ("m", "lateral error at the preview point"),
     "rms_psiL": ("rad", "heading error to the path"),

@@ -3,7 +3,7 @@
 `compare_runs(run_dirs, out_dir)` draws the figure layout of the first run with
 every run overlaid (one colour per run, labelled by folder name, or by
 parent/folder when two folders share a name; the tracking zoom goes to the
-largest |yc| of all runs, the map's road and obstacles are the first run's)
+largest |yc_cg| of all runs, the map's road and obstacles are the first run's)
 and writes the metrics of all runs side by side as CSV (exact values) and
 Markdown (4 significant digits).
 Metrics are the ones `cosim.analysis.metrics` computes, plus any other numbers the

@@ -1,14 +1,20 @@
 """Paper-style figures of a run (or several runs overlaid), saved as PNG.
 
-Two layouts, after the paper:
-- "track" (Fig. 4): nine panels, 3 x 3: x-y map with the planned path (and
-  the planner's road: lane edges, obstacles; cosim.figures.road),
-  curvature rho, speed tracking vx vs vx_ref, yL, psiL, yc, zoom on tracking
-  (a box sized from the largest |yc| of all runs; cosim.figures.zoom),
-  mu_hat vs true mu, steering angle delta.
-- "manoeuvre" (Fig. 5/6): seven panels: the map across the top with the
+Three layouts, after the paper:
+- "track" (Fig. 4): twelve panels, 4 x 3: x-y map at equal aspect with the
+  planned path (and the planner's road: lane edges, obstacles;
+  cosim.figures.road), curvature rho, speed tracking vx vs vx_ref, speed
+  error ex, the side-wind and aero forces, steering angle delta, yL, psiL,
+  yc (the paper's yL - ls psiL) with yc_cg (the CG's geometric offset), zoom
+  on tracking (a box sized from the largest |yc_cg| of all runs;
+  cosim.figures.zoom), mu_hat beside the true mu.
+- "manoeuvre" (Fig. 5/6): the map across the top at equal aspect with the
   planner's recommended and alternative windows, then curvature, yL, psiL,
-  steering angle, speed tracking and the reference acceleration force m·a_ref.
+  yc with yc_cg, steering angle (with an inset around the manoeuvre start),
+  speed tracking, speed error and the reference acceleration force m·a_ref.
+- "speed" (Fig. 4.3 and 4.4): one column per run, speed tracking above its
+  speed error ex and the aero force: `cosim compare RUN_NO_AERO RUN_AERO
+  --layout speed` gives the paper's two panels side by side.
 
 The layout comes from the scenario's `metrics.figures` ("track" or
 "manoeuvre") when given; else a scenario name with "lane", "obstacle",
@@ -33,11 +39,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from PIL import Image
 
+from cosim.figures import fidelity_panels as fp
 from cosim.figures import panels as pan
 from cosim.figures import signals as sig
 from cosim.analysis.rundata import AnalysisError, RunData, loaded_run
 
-LAYOUTS = ("track", "manoeuvre")
+LAYOUTS = ("track", "manoeuvre", "speed")
 MANOEUVRE_WORDS = ("lane", "obstacle", "iso3888", "manoeuvre", "maneuver")
 TRACK_WORDS = ("satory", "track", "friction")
 DPI = 110
@@ -67,18 +74,12 @@ def choose_layout(run: RunData) -> str:
     return "track"
 
 
-def _delta(ax, runs: Sequence[RunData]) -> None:
-    pan.time_series(ax, runs, lambda r: sig.column(r, "controller.delta"), "delta",
-                    "steering angle", "delta (rad)")
-
-
-def _errors(axes, runs: Sequence[RunData], with_yc: bool) -> None:
+def _errors(axes, runs: Sequence[RunData]) -> None:
     pan.time_series(axes[0], runs, lambda r: sig.column(r, "controller.yL"), "yL",
                     "lateral error at preview point", "yL (m)")
     pan.time_series(axes[1], runs, lambda r: sig.column(r, "controller.psiL"), "psiL",
                     "heading error", "psiL (rad)")
-    if with_yc:
-        pan.time_series(axes[2], runs, sig.lateral_cg, "yc", "lateral error at CG", "yc (m)")
+    fp.lateral_cg_panel(axes[2], runs)
 
 
 def _speed(ax, runs: Sequence[RunData]) -> None:
@@ -91,32 +92,51 @@ def _curvature(ax, runs: Sequence[RunData]) -> None:
 
 
 def track_figure(runs: Sequence[RunData]) -> Figure:
-    """The Fig. 4 layout (nine panels) for the given runs, overlaid."""
-    fig = Figure(figsize=(15, 12), layout="constrained")
-    axes = fig.subplots(3, 3).ravel()
+    """The Fig. 4 layout (twelve panels) for the given runs, overlaid."""
+    fig = Figure(figsize=(15, 16), layout="constrained")
+    axes = fig.subplots(4, 3).ravel()
     pan.trajectory_map(axes[0], runs)
     _curvature(axes[1], runs)
-    _speed(axes[2], runs)
-    _errors(axes[3:6], runs, with_yc=True)
-    pan.zoom_map(axes[6], runs)
-    pan.friction(axes[7], runs)
-    _delta(axes[8], runs)
+    fp.forces_panel(axes[2], runs)
+    _speed(axes[3], runs)
+    fp.speed_error_panel(axes[4], runs)
+    fp.steering_panel(axes[5], runs)
+    _errors(axes[6:9], runs)
+    pan.zoom_map(axes[9], runs)
+    pan.friction(axes[10], runs)
+    axes[11].set_axis_off()
     fig.suptitle(_title(runs, "track run"))
+    return fig
+
+
+def speed_figure(runs: Sequence[RunData]) -> Figure:
+    """Fig. 4.3/4.4: per run a column of speed tracking, speed error and aero force."""
+    fig = Figure(figsize=(6 * len(runs), 10), layout="constrained")
+    axes = np.asarray(fig.subplots(3, len(runs), squeeze=False))
+    for k, run in enumerate(runs):
+        _speed(axes[0, k], [run])
+        axes[0, k].set_title(f"speed tracking: {run.label}", fontsize=10)
+        fp.speed_error_panel(axes[1, k], [run])
+        fp.forces_panel(axes[2, k], [run])
+    fig.suptitle(_title(runs, "speed tracking"))
     return fig
 
 
 def manoeuvre_figure(runs: Sequence[RunData]) -> Figure:
     """The Fig. 5/6 layout (map across the top, six panels below) for the given runs."""
-    fig = Figure(figsize=(14, 15), layout="constrained")
-    grid = fig.add_gridspec(4, 2)
-    pan.trajectory_map(fig.add_subplot(grid[0, :]), runs, both_windows=True,
+    fig = Figure(figsize=(14, 18), layout="constrained")
+    grid = fig.add_gridspec(5, 2)
+    top = fig.add_subplot(grid[0, :])
+    pan.trajectory_map(top, runs, both_windows=True,
                        title="road and planned trajectories", equal=False)
-    cells = [fig.add_subplot(grid[r, c]) for r in range(1, 4) for c in range(2)]
+    fp.focus_on_manoeuvre(top, runs[0])
+    cells = [fig.add_subplot(grid[r, c]) for r in range(1, 5) for c in range(2)]
     _curvature(cells[0], runs)
-    _errors(cells[1:3], runs, with_yc=False)
-    _delta(cells[3], runs)
-    _speed(cells[4], runs)
-    pan.acceleration_force(cells[5], runs)
+    _errors(cells[1:4], runs)
+    fp.steering_panel(cells[4], runs)
+    _speed(cells[5], runs)
+    fp.speed_error_panel(cells[6], runs)
+    pan.acceleration_force(cells[7], runs)
     fig.suptitle(_title(runs, "manoeuvre"))
     return fig
 
@@ -139,7 +159,8 @@ def build_figure(runs: Sequence[RunData], layout: str | None = None) -> tuple[Fi
     layout = layout or choose_layout(runs[0])
     if layout not in LAYOUTS:
         raise AnalysisError(f"layout: expected one of {', '.join(LAYOUTS)}, found {layout!r}")
-    fig = track_figure(runs) if layout == "track" else manoeuvre_figure(runs)
+    builders = {"track": track_figure, "manoeuvre": manoeuvre_figure, "speed": speed_figure}
+    fig = builders[layout](runs)
     return fig, layout
 
 

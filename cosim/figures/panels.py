@@ -161,7 +161,7 @@ def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False
 
 
 def zoom_map(ax: Axes, runs: Sequence[RunData]) -> None:
-    """The vehicle and planned paths around the largest |yc| of all runs (cosim.figures.zoom)."""
+    """The vehicle and planned paths around the largest |yc_cg| of all runs (cosim.figures.zoom)."""
     zoom.zoom_map(ax, runs, [color(i) for i in range(len(runs))],
                   [_label(runs, i, "vehicle") for i in range(len(runs))])
 

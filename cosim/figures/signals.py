@@ -40,9 +40,15 @@ def speed_reference(run: RunData) -> Series | None:
 
 
 def lateral_cg(run: RunData) -> Series | None:
-    """yc, the lateral deviation at the CG (see metrics.lateral_error_cg)."""
+    """yc, the paper's lateral error at the CG, yL - ls psiL (see metrics.lateral_error_cg)."""
     yc = lateral_error_cg(run)
     return None if yc is None else (run.time, yc)
+
+
+def offset_cg(run: RunData) -> Series | None:
+    """yc_cg, the CG's geometric offset from the path; the paper's yc when not recorded."""
+    yc_cg = run.signal("controller.yc_cg")
+    return lateral_cg(run) if yc_cg is None else (run.time, yc_cg)
 
 
 def friction(run: RunData) -> tuple[Series, str]:

@@ -1,9 +1,9 @@
-"""The "zoom on tracking" panel: the vehicle and planned paths around the worst |yc|.
+"""The "zoom on tracking" panel: the vehicle and planned paths around the worst |yc_cg|.
 
 The tracking error is centimetres while the map is kilometres, so a fixed-size
 zoom shows one line. The panel is an x-y map (same scale on both axes, as the
-paper's Fig. 4) centred on the vehicle's CG at the tick of the largest |yc|
-over all the runs drawn, with a half-width of ZOOM_FACTOR times that |yc|
+paper's Fig. 4) centred on the vehicle's CG at the tick of the largest |yc_cg|
+over all the runs drawn, with a half-width of ZOOM_FACTOR times that |yc_cg|
 (at least ZOOM_MIN_HALF_WIDTH), so the gap between the two paths is a quarter
 of the box at most and always visible. Coordinates are relative to that point,
 so the ticks read as small offsets instead of 711.02, 711.04...
@@ -24,7 +24,7 @@ from matplotlib.axes import Axes
 from cosim.figures import signals as sig
 from cosim.analysis.rundata import RunData
 
-ZOOM_FACTOR = 4.0            # half-width of the box in units of the largest |yc|
+ZOOM_FACTOR = 4.0            # half-width of the box in units of the largest |yc_cg|
 ZOOM_MIN_HALF_WIDTH = 0.05   # m: a run with (almost) no error still gets a readable box
 
 
@@ -35,7 +35,8 @@ def vehicle_xy(run: RunData) -> sig.Series | None:
 
 
 def worst_point(runs: Sequence[RunData]) -> tuple[int, int, float] | None:
-    """Where |yc| is largest over all runs: (run index, tick, |yc|).
+    """Where the CG is farthest from the path over all runs: (run index, tick, |yc_cg|)
+    (the geometric offset, signals.offset_cg: the zoom shows geometry).
 
     Ties go to the earlier run, then the earlier tick; non-finite values are
     skipped. None when no run recorded both yc and the vehicle position.
@@ -45,7 +46,7 @@ def worst_point(runs: Sequence[RunData]) -> tuple[int, int, float] | None:
     """
     best = None
     for i, run in enumerate(runs):
-        yc = sig.lateral_cg(run)
+        yc = sig.offset_cg(run)
         if yc is None or vehicle_xy(run) is None or len(yc[1]) == 0:
             continue
         size = np.abs(yc[1])
@@ -57,7 +58,7 @@ def worst_point(runs: Sequence[RunData]) -> tuple[int, int, float] | None:
 
 
 def zoom_half_width(largest_yc: float) -> float:
-    """Half-width of the zoom box, m, for a largest |yc| (m)."""
+    """Half-width of the zoom box, m, for a largest |yc_cg| (m)."""
     return max(ZOOM_FACTOR * largest_yc, ZOOM_MIN_HALF_WIDTH)
 
 
@@ -87,7 +88,7 @@ def _near(x: np.ndarray, y: np.ndarray, cx: float, cy: float, half: float) -> si
 
 
 def zoom_map(ax: Axes, runs: Sequence[RunData], colors: Sequence[str], labels: Sequence[str]) -> None:
-    """Draw the zoom around the largest |yc| of all runs (see the module docstring).
+    """Draw the zoom around the largest |yc_cg| of all runs (see the module docstring).
 
     Args:
         ax: the axes to draw in.
@@ -96,7 +97,7 @@ def zoom_map(ax: Axes, runs: Sequence[RunData], colors: Sequence[str], labels: S
         labels: the legend label of each run's vehicle path.
     """
     worst = worst_point(runs)
-    ax.set_title("zoom on tracking (largest |yc|)", fontsize=10)
+    ax.set_title("zoom on tracking (largest |yc_cg|)", fontsize=10)
     ax.grid(True, alpha=0.3)
     if worst is None:
         ax.text(0.5, 0.5, "not recorded: yc, vehicle.x, vehicle.y", transform=ax.transAxes,
@@ -115,7 +116,7 @@ def zoom_map(ax: Axes, runs: Sequence[RunData], colors: Sequence[str], labels: S
         if xy is not None:
             ax.plot(*_near(xy[0], xy[1], cx, cy, half), color=colors[j], lw=1.2, label=labels[j])
     ax.plot([0.0], [0.0], "o", mfc="none", color=colors[i], ms=7,
-            label=f"|yc| = {100 * size:.2f} cm at t = {t:.2f} s"
+            label=f"|yc_cg| = {100 * size:.2f} cm at t = {t:.2f} s"
             + (f" ({runs[i].label})" if len(runs) > 1 else ""))
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlim(-half, half)

@@ -1,7 +1,7 @@
 /*
  * Bicycle model: the paper's design model (EQUATIONS.md).
  *   lateral : linear bicycle, eq. 1-2, tyre forces 2 mu C alpha per axle;
- *   longitudinal : equivalent wheel, eq. 5, me = m + iy_wheels iy / Rw^2, with
+ *   longitudinal : equivalent wheel, eq. 5, me = m + iy / Rw^2 (iy: all wheels), with
  *                  Fwx = -cx vx|vx| + wind_fx;
  *   side wind wind_fy at lw ahead of the CG;  world kinematics x, y, psi.
  * Integration: classical RK4 with fixed sub-steps of at most H_MAX per
@@ -43,7 +43,7 @@ static Params read_params(const double *v)
     Params p;
     p.m = v[VR_m]; p.Iz = v[VR_Iz]; p.Cf = v[VR_Cf]; p.Cr = v[VR_Cr];
     p.lf = v[VR_lf]; p.lr = v[VR_lr]; p.Rw = v[VR_Rw]; p.cx = v[VR_cx]; p.lw = v[VR_lw];
-    p.me = p.m + v[VR_iy_wheels] * v[VR_iy] / (p.Rw * p.Rw);
+    p.me = p.m + v[VR_iy] / (p.Rw * p.Rw);
     p.delta = v[VR_delta]; p.torque = v[VR_torque];
     p.wind_fx = v[VR_wind_fx]; p.wind_fy = v[VR_wind_fy]; p.mu = v[VR_mu];
     return p;

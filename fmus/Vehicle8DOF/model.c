@@ -41,7 +41,7 @@ typedef struct {
 
 /* Parameters and quantities derived from them, gathered once per call. */
 typedef struct {
-    double m, iz, iy, rw, cx, lw;
+    double m, iz, iy, rw, cx, lw;   /* iy: one wheel's spin inertia */
     double ms, ix_s, k_roll, c_roll, roll_split, ms_e, h_cg, h_rc, m_uf, m_ur;
     double lf, lr, wb, tf, tr;
     double fz0[N_WHEELS], c_alpha[N_WHEELS], ck, px[N_WHEELS], py[N_WHEELS];
@@ -86,7 +86,8 @@ static double ky_shape(double x, double ky_load)
 
 static void load_par(const double *v, Par *p)
 {
-    p->m = v[VR_m]; p->iz = v[VR_Iz]; p->iy = v[VR_iy]; p->rw = v[VR_Rw];
+    /* iy is the paper's equivalent inertia of all wheels (me = m + iy / Rw^2) */
+    p->m = v[VR_m]; p->iz = v[VR_Iz]; p->iy = v[VR_iy] / N_WHEELS; p->rw = v[VR_Rw];
     p->cx = v[VR_cx]; p->lw = v[VR_lw];
     p->lf = v[VR_lf]; p->lr = v[VR_lr]; p->wb = p->lf + p->lr;
     p->tf = v[VR_track_f]; p->tr = v[VR_track_r];

@@ -30,7 +30,7 @@ def test_metric_rows_known_first_in_canonical_order_then_component_metrics():
                "rms_ex": 0.023057135773015932, "max_abs_yc": 0.013461630748348052,
                "zeta": 2.5}
     assert metric_rows(metrics) == [
-        ("max_abs_yc", "0.01346", "m", "lateral error at the CG"),
+        ("max_abs_yc", "0.01346", "m", "lateral error at the CG, yL - ls psiL (paper, Fig. 4.7)"),
         ("rms_ex", "0.02306", "m/s", "speed error vx - vx_ref"),
         ("mu_hat_final", "0.8954", "1", "friction estimate at the end"),
         ("controller.steps", "51", "", "reported by controller"),
@@ -50,8 +50,8 @@ def test_print_summary_shows_both_tables(tmp_path: Path):
     for expected in (f"folder {tmp_path}", "ticks 4500", "sim time 45 s", "wall time 2.25 s",
                      "real-time factor 20",
                      "time to tick 0 0.934 s", "realtime.factor 1", "realtime.deadline_misses 2",
-                     "rms_yc 0.003486 m lateral error at the CG",
+                     "rms_yc 0.003486 m lateral error at the CG, yL - ls psiL (paper, Fig. 4.7)",
                      "controller.steps 4501 reported by controller"):
         assert expected in lines, (expected, text)
     assert lines.index("ticks 4500") < lines.index("metrics") < lines.index(
-        "rms_yc 0.003486 m lateral error at the CG")
+        "rms_yc 0.003486 m lateral error at the CG, yL - ls psiL (paper, Fig. 4.7)")

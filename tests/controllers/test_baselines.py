@@ -24,7 +24,7 @@ def test_same_ports_as_backstepping():
         controller = cls()
         assert controller.inputs == reference.inputs
         names = [port.name for port in controller.outputs]
-        assert names == ["delta", "torque", "yL", "psiL", "yc", "ex", "vx_ref"]
+        assert names == ["delta", "torque", "yL", "psiL", "yc", "yc_cg", "ex", "vx_ref"]
         assert all(name in [port.name for port in reference.outputs] for name in names)
 
 
@@ -32,7 +32,8 @@ def test_same_ports_as_backstepping():
 def test_straight_line_from_offset(cls):
     plant = LinearPlant(PARAMS, y0=1.0, psi0=-0.05, vx0=8.0, cx=0.42, substeps=2)
     run = run_closed_loop(cls(), plant, LinePath(), duration=10.0, v_ref=10.0)
-    assert run["yc"][0] == pytest.approx(1.0)
+    assert run["yc_cg"][0] == pytest.approx(1.0)
+    assert run["yc"][0] == pytest.approx(run["yL"][0] - 5.0 * run["psiL"][0])
     assert np.max(np.abs(run["yc"][500:])) < 0.03        # settled after 5 s
     assert abs(run["yc"][-1]) < 0.005
     assert abs(run["ex"][-1]) < 0.05                      # the integral absorbs the drag
@@ -45,8 +46,8 @@ def test_circle_tracking_within_tolerance(cls, tolerance):
     plant = LinearPlant(PARAMS, vx0=10.0, r0=10.0 / radius, substeps=2)
     run = run_closed_loop(cls(), plant, CirclePath(radius), duration=12.0, v_ref=10.0)
     cg_offsets = [CirclePath(radius).offset_of(x, y) for x, y in zip(run["plant_x"], run["plant_y"])]
-    assert run["yc"] == pytest.approx(np.array(cg_offsets), abs=1e-8)   # Hermite vs exact circle
-    assert np.max(np.abs(run["yc"][600:])) < tolerance
+    assert run["yc_cg"] == pytest.approx(np.array(cg_offsets), abs=1e-8)   # Hermite vs exact circle
+    assert np.max(np.abs(run["yc_cg"][600:])) < tolerance
     # steering settles near the steady-state steer of the model (L + K vx^2) rho
     understeer = PARAMS.m / PARAMS.wheelbase * (PARAMS.lr / (2 * PARAMS.Cf) - PARAMS.lf / (2 * PARAMS.Cr))
     assert run["delta"][-1] == pytest.approx((PARAMS.wheelbase + understeer * 100.0) / radius, rel=0.05)

@@ -29,10 +29,12 @@ def _lines(ax):
     return {line.get_label(): line for line in ax.get_lines()}
 
 
-def test_track_layout_has_nine_panels_with_the_run_data(tmp_path):
+def test_track_layout_has_eleven_panels_with_the_run_data(tmp_path):
     run = load_run(lane_change_run(tmp_path / "r"))
     fig, layout = build_figure([run], "track")
-    assert layout == "track" and len(fig.axes) == 9
+    assert layout == "track" and len([ax for ax in fig.axes if ax.axison]) == 11
+    for title in ("speed error", "external forces", "steering angle"):
+        assert title in _axes_by_title(fig)
     axes = _axes_by_title(fig)
     yc = _lines(axes["lateral error at CG"])["yc"]
     np.testing.assert_array_equal(yc.get_ydata(), run.signal("controller.yc"))
@@ -41,13 +43,13 @@ def test_track_layout_has_nine_panels_with_the_run_data(tmp_path):
     np.testing.assert_array_equal(mu["mu_hat"].get_ydata(), run.signal("controller.mu_hat"))
     speed = _lines(axes["speed tracking"])
     assert set(speed) == {"vx", "vx_ref"}
-    assert all(ax.get_xlabel() and ax.get_ylabel() for ax in fig.axes)
+    assert all(ax.get_xlabel() and ax.get_ylabel() for ax in fig.axes if ax.axison)
 
 
-def test_manoeuvre_layout_has_seven_panels_with_both_trajectories(tmp_path):
+def test_manoeuvre_layout_has_nine_panels_with_both_trajectories(tmp_path):
     run = load_run(lane_change_run(tmp_path / "r"))
     fig, layout = build_figure([run])
-    assert layout == "manoeuvre" and len(fig.axes) == 7
+    assert layout == "manoeuvre" and len(fig.axes) == 9
     axes = _axes_by_title(fig)
     road = axes["road and planned trajectories"]
     alt = [line for line in road.get_lines() if line.get_color() == "tab:orange"]
@@ -99,7 +101,7 @@ def test_missing_signals_give_notes_not_errors(tmp_path):
     fig, _ = build_figure([load_run(run)])
     notes = [txt.get_text() for ax in fig.axes for txt in ax.texts]
     assert "not recorded: yL" in notes and "not recorded: delta" in notes
-    assert len(fig.axes) == 9
+    assert len(fig.axes) == 12
 
 
 def test_compare_two_runs_overlays_and_tabulates(tmp_path):
@@ -309,7 +311,7 @@ def test_zoom_is_sized_from_the_largest_yc_and_shows_the_gap(tmp_path):
 
     run = load_run(_offset_run(tmp_path / "r", 2.5, 0.02))
     fig, _ = build_figure([run], "track")
-    ax = _axes_by_title(fig)["zoom on tracking (largest |yc|)"]
+    ax = _axes_by_title(fig)["zoom on tracking (largest |yc_cg|)"]
     half = ZOOM_FACTOR * 0.02
     np.testing.assert_allclose(ax.get_xlim(), (-half, half))
     np.testing.assert_allclose(ax.get_ylim(), (-half, half))
@@ -317,7 +319,7 @@ def test_zoom_is_sized_from_the_largest_yc_and_shows_the_gap(tmp_path):
     planned = lines["planned path (window at t = 2.50 s)"]   # the window recorded at the worst tick
     np.testing.assert_allclose(planned.get_xdata(), 25.0 + 0.25 * np.arange(64) - 2.0 - 25.0)
     np.testing.assert_allclose(planned.get_ydata(), -0.02)   # the path lies |yc| to the right
-    marker = lines["|yc| = 2.00 cm at t = 2.50 s"]
+    marker = lines["|yc_cg| = 2.00 cm at t = 2.50 s"]
     assert list(marker.get_xdata()) == [0.0] and list(marker.get_ydata()) == [0.0]
     vehicle = lines["vehicle"]
     inside = np.isfinite(vehicle.get_xdata())
@@ -331,7 +333,7 @@ def test_zoom_box_has_a_minimum_for_a_run_without_error(tmp_path):
 
     assert zoom_half_width(0.0) == ZOOM_MIN_HALF_WIDTH == zoom_half_width(ZOOM_MIN_HALF_WIDTH / 5)
     run = load_run(_offset_run(tmp_path / "r", 2.5, 0.0))
-    ax = _axes_by_title(build_figure([run], "track")[0])["zoom on tracking (largest |yc|)"]
+    ax = _axes_by_title(build_figure([run], "track")[0])["zoom on tracking (largest |yc_cg|)"]
     np.testing.assert_allclose(ax.get_xlim(), (-ZOOM_MIN_HALF_WIDTH, ZOOM_MIN_HALF_WIDTH))
 
 
@@ -343,16 +345,16 @@ def test_compare_zoom_goes_to_the_worst_point_over_all_runs(tmp_path):
     assert worst_point([small, large]) == (1, 300, 0.03)
     assert worst_point([large, small]) == (0, 300, 0.03)
     fig, _ = build_figure([small, large], "track")
-    ax = _axes_by_title(fig)["zoom on tracking (largest |yc|)"]
+    ax = _axes_by_title(fig)["zoom on tracking (largest |yc_cg|)"]
     assert ax.get_xlabel() == "x - 30.00 (m)"             # large's worst tick, not small's
     labels = set(_lines(ax))
-    assert {"small: vehicle", "large: vehicle", "|yc| = 3.00 cm at t = 3.00 s (large)"} <= labels
+    assert {"small: vehicle", "large: vehicle", "|yc_cg| = 3.00 cm at t = 3.00 s (large)"} <= labels
 
 
 def test_zoom_without_yc_says_so(tmp_path):
     t = np.arange(3.0)
     run = load_run(write_run(tmp_path / "r", t, {"vehicle.x": t, "vehicle.y": 0 * t}))
-    ax = _axes_by_title(build_figure([run], "track")[0])["zoom on tracking (largest |yc|)"]
+    ax = _axes_by_title(build_figure([run], "track")[0])["zoom on tracking (largest |yc_cg|)"]
     assert [txt.get_text() for txt in ax.texts] == ["not recorded: yc, vehicle.x, vehicle.y"]
 
 
@@ -405,3 +407,34 @@ def test_a_road_that_cannot_be_rebuilt_is_a_note_in_the_map(tmp_path):
     notes = [text.get_text() for text in road_ax.texts]
     assert notes == ["road not drawn: components.plan.parameters.road.builder: unknown road "
                      "'no_such_road' (known: satory_standin, two_lane)"]
+
+
+def test_speed_layout_gives_each_run_its_own_speed_and_error_panels(tmp_path):
+    runs = [load_run(lane_change_run(tmp_path / "a")), load_run(lane_change_run(tmp_path / "b"))]
+    fig, layout = build_figure(runs, "speed")
+    assert layout == "speed" and len(fig.axes) == 6
+    errors = [ax for ax in fig.axes if ax.get_title() == "speed error"]
+    assert len(errors) == 2
+    for ax, run in zip(errors, runs):
+        np.testing.assert_array_equal(_lines(ax)["ex"].get_ydata(), run.signal("controller.ex"))
+    drag = _lines([ax for ax in fig.axes if ax.get_title() == "external forces"][0])["Fwx (aero drag)"]
+    vx = runs[0].signal("vehicle.vx")
+    np.testing.assert_allclose(drag.get_ydata(), -0.42 * vx * np.abs(vx))
+
+
+def test_manoeuvre_map_is_equal_aspect_on_the_manoeuvre_with_a_steering_inset(tmp_path):
+    t = np.arange(0, 601) * 0.01
+    state = ((t >= 2.0) & (t < 4.0)).astype(float)
+    path = lane_change_run(tmp_path / "r")
+    run = load_run(path)
+    cols = {name: run.columns[name] for name in run.columns if name != "time"}
+    cols["planner.manoeuvre_state"] = state
+    run = load_run(write_run(tmp_path / "s", t, cols, {"name": "lane_change"}))
+    fig, _ = build_figure([run], "manoeuvre")
+    road = _axes_by_title(fig)["road and planned trajectories"]
+    assert road.get_aspect() == 1.0
+    assert road.get_xlim() == pytest.approx((20.0 - 30.0, 40.0 + 30.0))
+    steering = _axes_by_title(fig)["steering angle"]
+    insets = [child for child in steering.get_children() if hasattr(child, "get_title")
+              and child.get_title() == "manoeuvre start"]
+    assert len(insets) == 1

@@ -9,7 +9,8 @@ coefficients are set to its p_Cx1, p_Dx1, p_Ex1, p_Kx1, p_Cy1, p_Dy1, p_Ey1,
 p_Ky1, r_Bx1, r_Bx2, r_By1, r_By2; its stiffness is proportional to load
 (K = p_K Fz), so ours gets ky_load = 1000 (sin(2 atan z) ~ 2 z) and one nominal
 load for both axles, mu_load = 0, no relaxation (STD has none), no drag or
-rolling resistance. CommonRoad's wheel is one per axle: its I_y_w is 2 iy.
+rolling resistance. CommonRoad's wheel is one per axle: its I_y_w is iy / 2
+(our iy is all four wheels together, each wheel iy / 4).
 Steering is prescribed (the steering-angle state is set, not rate-limited).
 
 What CommonRoad has and we do not (and the reverse), so what the tolerances
@@ -43,7 +44,7 @@ def cr_params(defaults8):
     p = parameters_vehicle2()
     d = defaults8
     p.m, p.I_z, p.a, p.b, p.h_s, p.R_w = d["m"], d["Iz"], d["lf"], d["lr"], d["h_cg"], d["Rw"]
-    p.I_y_w = 2.0 * d["iy"]
+    p.I_y_w = d["iy"] / 2.0
     p.T_se = 0.0     # engine torque to the rear axle (unused: no drive in these tests)
     p.longitudinal.a_max = 20.0
     # CommonRoad's formula_longitudinal adds the vertical shift S_Vx = p_Vx1 Fz

@@ -4,7 +4,10 @@ The FMU is built once per test session from its C sources with
 cosim.fmu.build (the cache of tests/helpers/fmus.py) and simulated with
 fmpy.simulate_fmu. Every expectation comes from an analytic result (linear
 bicycle steady-state gain, drag law, roll gradient, friction limit) or an exact
-symmetry, never from a recorded run.
+symmetry, never from a recorded run. They run the model's default tyre, the
+Magic Formula (tyre_model = 1); where the Dugoff tyre (tyre_model = 0, the
+design model's mu-scaled tyre) behaves differently, both are asserted. Tests of
+steady states at constant speed set the road loads (cx, f_rr) to 0.
 """
 from __future__ import annotations
 
@@ -26,7 +29,10 @@ M, IZ, C_F, C_R, L_F, L_R, I_Y, R_W = 1500.0, 2454.0, 57500.0, 57500.0, 1.006, 1
 M_UNSPRUNG, H_CG, H_RC, K_ROLL = 200.0, 0.55, 0.1, 88000.0
 WHEELBASE = L_F + L_R
 VARIABLES_DEF = FMUS_DIR / "Vehicle8DOF" / "variables.def"
-M_E = M + 4.0 * I_Y / R_W**2          # equivalent mass with the four wheel inertias
+M_E = M + I_Y / R_W**2                # eq. 5: iy is the four wheels together (each iy / 4)
+F_RR = 0.012                          # default rolling resistance coefficient
+PAC_X = (1.5, 0.3, 80000.0)           # default pCx, pEx, Ck of the Magic Formula tyre
+STEADY = {"cx": 0.0, "f_rr": 0.0}     # no road load: constant speed in the steady-state tests
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +76,8 @@ def test_the_expectations_use_the_models_defaults():
     """The constants above are the defaults of fmus/Vehicle8DOF/variables.def."""
     table = {row["name"]: row["start"] for row in parse_variables_def(VARIABLES_DEF)}
     constants = {"m": M, "Iz": IZ, "Cf": C_F, "Cr": C_R, "lf": L_F, "lr": L_R, "iy": I_Y,
-                 "Rw": R_W, "m_unsprung": M_UNSPRUNG, "h_cg": H_CG, "h_rc": H_RC, "k_roll": K_ROLL}
+                 "Rw": R_W, "m_unsprung": M_UNSPRUNG, "h_cg": H_CG, "h_rc": H_RC, "k_roll": K_ROLL,
+                 "f_rr": F_RR, "pCx": PAC_X[0], "pEx": PAC_X[1], "Ck": PAC_X[2], "tyre_model": 1.0}
     assert {name: table[name] for name in constants} == constants
 
 
@@ -79,35 +86,69 @@ def understeer_gradient(mu=1.0, m=M):
     return m * (L_R * C_R - L_F * C_F) / (2.0 * mu * C_F * C_R * WHEELBASE)
 
 
-@pytest.mark.parametrize("vx0, delta, mu", [(10.0, 0.01, 1.0), (20.0, 0.004, 1.0),
-                                            (15.0, 0.024, 1.0), (15.0, 0.005, 0.6)])
-def test_steady_yaw_rate_equals_linear_bicycle_gain(fmu_dir, vx0, delta, mu):
-    res = simulate(fmu_dir, 6.0, {"vx0": vx0, "cx": 0.0}, {"delta": delta, "mu": mu})
+@pytest.mark.parametrize("tyre, vx0, delta, mu", [
+    (1.0, 10.0, 0.01, 1.0), (1.0, 20.0, 0.004, 1.0), (1.0, 15.0, 0.024, 1.0), (1.0, 15.0, 0.005, 0.6),
+    (0.0, 10.0, 0.01, 1.0), (0.0, 15.0, 0.005, 0.6)])
+def test_steady_yaw_rate_equals_linear_bicycle_gain(fmu_dir, tyre, vx0, delta, mu):
+    """In the linear range the yaw gain is the linear bicycle's with Table I's
+    stiffness. Magic Formula (tyre 1): mu caps the peak only, so on mu = 0.6 the
+    small-slip gain is still the mu = 1 gain (and > 5 % off the mu-scaled one);
+    Dugoff (tyre 0, the design model's tyre): the gain with the stiffness mu C."""
+    res = simulate(fmu_dir, 6.0, {"vx0": vx0, "tyre_model": tyre, **STEADY},
+                   {"delta": delta, "mu": mu})
     end = res[-1]
     assert 0.1 < abs(end["ay"]) < 2.0, "test must stay in the linear range"
     vx = end["vx"]
-    r_linear = vx / (WHEELBASE + understeer_gradient(mu) * vx**2) * delta
-    # the issue asks for a few percent; the model agrees to about 1e-4 (Fz-proportional
-    # stiffness keeps each axle's stiffness under load transfer), so hold it to 0.5 %
+    gain = {m: vx / (WHEELBASE + understeer_gradient(m) * vx**2) * delta for m in (mu, 1.0)}
+    r_linear = gain[1.0] if tyre == 1.0 else gain[mu]
+    # 0.5 %: the Magic Formula's curvature and load sensitivity under the small
+    # load transfer cost < 0.2 % at these slips; Dugoff agrees to about 1e-4
     assert end["r"] == pytest.approx(r_linear, rel=0.005)
+    if mu != 1.0:
+        other = gain[mu] if tyre == 1.0 else gain[1.0]
+        assert abs(end["r"] / other - 1.0) > 0.05, "the two tyre laws must differ here"
     # steady state reached: yaw rate no longer moving over the last second
     assert abs(res["r"][-1] - res["r"][-101]) < 0.01 * abs(r_linear)
 
 
-@pytest.mark.parametrize("mu", [1.0, 0.5])
-def test_agrees_with_bicycle_model_in_linear_range(fmu_dir, bicycle_dir, mu):
-    """Cross-check against the paper's linear model (the other built-in FMU)."""
+def test_friction_limit_shows_at_saturation_not_in_the_linear_range(fmu_dir):
+    """Magic Formula on mu = 0.5: the small steer of the test above gives the
+    mu = 1 response, a steer 20 times larger saturates at 0.9-1.0 mu g (the
+    friction limit) where mu = 1 still grips, so the two roads differ only there."""
+    ay = {}
+    for mu in (1.0, 0.5):
+        for delta in (0.005, 0.1):
+            res = simulate(fmu_dir, 4.0, {"vx0": 15.0, **STEADY}, {"delta": delta, "mu": mu})
+            ay[mu, delta] = np.max(np.abs(res["ay"]))
+    assert ay[0.5, 0.005] == pytest.approx(ay[1.0, 0.005], rel=0.01)
+    assert 0.9 * 0.5 * G < ay[0.5, 0.1] <= 1.02 * 0.5 * G
+    assert ay[1.0, 0.1] > 1.3 * 0.5 * G
+
+
+@pytest.mark.parametrize("tyre, mu, bicycle_mu", [(1.0, 1.0, 1.0), (1.0, 0.5, 1.0),
+                                                  (0.0, 1.0, 1.0), (0.0, 0.5, 0.5)])
+def test_agrees_with_bicycle_model_in_linear_range(fmu_dir, bicycle_dir, tyre, mu, bicycle_mu):
+    """Cross-check against the paper's linear model (the other built-in FMU),
+    without rolling resistance (the Bicycle has none). The Bicycle scales its
+    stiffness by mu; the Magic Formula tyre does not, so on mu = 0.5 the 8-DOF
+    follows the Bicycle at mu = 1 (in the linear range mu only caps the peak),
+    and the Bicycle at mu = 0.5 is > 10 % off; the Dugoff tyre follows the
+    Bicycle at the same mu."""
     times = np.arange(0.0, 8.01, 0.5)
     inputs = {"delta": 0.02 * np.sin(0.8 * times), "torque": np.full(times.shape, 200.0),
               "wind_fy": 500.0 * np.cos(times), "mu": mu}
-    ref = simulate(bicycle_dir, 8.0, {"vx0": 12.0}, inputs, times)
-    res = simulate(fmu_dir, 8.0, {"vx0": 12.0}, inputs, times)
+    ref = simulate(bicycle_dir, 8.0, {"vx0": 12.0}, {**inputs, "mu": bicycle_mu}, times)
+    res = simulate(fmu_dir, 8.0, {"vx0": 12.0, "tyre_model": tyre, "f_rr": 0.0}, inputs, times)
     assert np.max(np.abs(res["ay"])) < 2.0
-    # yaw and path within a few percent of their range; speed closer (the front
-    # lateral force's drag component, absent from eq. 5, is the main difference)
+    # yaw and path within a few percent of their range (Magic Formula: relaxation
+    # lag sigma_y / vx = 33 ms and load sensitivity, ~1.5-2 %); speed closer (the
+    # front lateral force's drag component, absent from eq. 5, is the main difference)
     for name, tol in (("r", 0.04), ("psi", 0.04), ("y", 0.04), ("vx", 0.015)):
         scale = np.max(np.abs(ref[name]))
         assert np.max(np.abs(res[name] - ref[name])) < tol * scale, name
+    if tyre == 1.0 and mu != 1.0:
+        scaled = simulate(bicycle_dir, 8.0, {"vx0": 12.0}, inputs, times)
+        assert np.max(np.abs(res["r"] - scaled["r"])) > 0.1 * np.max(np.abs(scaled["r"]))
 
 
 def test_lateral_acceleration_limited_by_low_friction(fmu_dir):
@@ -161,17 +202,41 @@ def test_left_and_right_steer_are_exact_mirrors(fmu_dir):
     np.testing.assert_array_equal(left["omega_rl"], right["omega_rr"])
 
 
-def test_hard_braking_locks_wheels_and_stops(fmu_dir):
+def locked_wheel_friction(fz_nom, mu=1.0):
+    """Magic Formula force / load of a locked wheel (kappa = -1, alpha = 0) with
+    mu_load = 0: D = mu Fz (pDx = 1), B = Kx / (C D) = Ck / (C mu Fz_nom) since Kx
+    is Ck Fz / Fz_nom, so the ratio does not depend on the actual load."""
+    c, e, ck = PAC_X
+    b = ck / (c * mu * fz_nom)
+    return mu * math.sin(c * math.atan(b - e * (b - math.atan(b))))
+
+
+@pytest.mark.parametrize("tyre", [1.0, 0.0])
+def test_hard_braking_locks_wheels_and_stops(fmu_dir, tyre):
+    """-8000 N.m locks every wheel. Magic Formula: the car slides at the
+    locked-wheel friction of the tyre curve (fall-off after the peak), between
+    the rear axle's 0.78 and the front's 0.81 (weighted by the loads under
+    braking), so the distance lies between v0^2 / (2 g s_front) and
+    v0^2 / (2 g s_rear) within 2 % (the lock-up transient through the peak and
+    the regularised slip below v_eps shorten it slightly); mu_load = 0 for a
+    closed-form friction. Dugoff has no fall-off: it slides at mu g (distance
+    within 5 % of v0^2 / (2 g), never shorter)."""
     v0 = 15.0
-    res = simulate(fmu_dir, 3.0, {"vx0": v0, "cx": 0.0}, {"torque": -8000.0})
+    res = simulate(fmu_dir, 3.0, {"vx0": v0, "tyre_model": tyre, "mu_load": 0.0, "cx": 0.0},
+                   {"torque": -8000.0})
     sliding = res["vx"] > 1.0
     slip_front = R_W * res["omega_fl"][sliding] / res["vx"][sliding] - 1.0
     assert np.min(slip_front) < -0.9, "front wheels should lock"
     assert res["vx"][-1] == 0.0 and np.all(res["vx"] >= 0.0), "stops, never reverses"
     assert np.all(np.diff(res["vx"]) <= 0.0), "no oscillation while stopping"
-    # sliding on locked wheels: deceleration close to (never above) mu g
     distance = res["x"][-1]
-    assert v0**2 / (2.0 * G) <= distance <= 1.05 * v0**2 / (2.0 * G)
+    if tyre == 0.0:
+        assert v0**2 / (2.0 * G) <= distance <= 1.05 * v0**2 / (2.0 * G)
+        return
+    fz_f, fz_r = 0.5 * M * G * L_R / WHEELBASE, 0.5 * M * G * L_F / WHEELBASE
+    s_f, s_r = locked_wheel_friction(fz_f), locked_wheel_friction(fz_r)
+    assert 0.75 < s_r < s_f < 0.85, "well below the peak friction 1"
+    assert 0.98 * v0**2 / (2.0 * G * s_f) <= distance <= v0**2 / (2.0 * G * s_r)
 
 
 def test_accelerating_from_standstill_follows_equivalent_wheel_law(fmu_dir):
@@ -181,8 +246,9 @@ def test_accelerating_from_standstill_follows_equivalent_wheel_law(fmu_dir):
     assert np.all(np.diff(res["vx"]) > 0.0)
     # smooth: the acceleration changes by less than 0.01 m/s2 per 10 ms step
     assert np.max(np.abs(np.diff(res["ax"][1:]))) < 0.01
-    # me vx_dot = tau / Rw - cx vx^2 (eq. 5): v = sqrt(F/cx) tanh(t sqrt(F cx) / me)
-    force = torque / R_W
+    # me vx_dot = tau / Rw - f_rr m g - cx vx^2 (eq. 5 with the default rolling
+    # resistance): v = sqrt(F/cx) tanh(t sqrt(F cx) / me)
+    force = torque / R_W - F_RR * M * G
     v_law = math.sqrt(force / cx) * np.tanh(res["time"] * math.sqrt(force * cx) / M_E)
     np.testing.assert_allclose(res["vx"][100:], v_law[100:], rtol=0.003)
     slip = R_W * res["omega_rl"][100:] / res["vx"][100:] - 1.0

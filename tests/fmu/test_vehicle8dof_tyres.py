@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 G = 9.81
-PAC = {"tyre_model": 1.0}
+PAC = {"tyre_model": 1.0, "f_rr": 0.0}   # the tyre alone: no rolling resistance (tested below)
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +22,7 @@ def car(defaults8):
     d["L"] = d["lf"] + d["lr"]
     d["fz0f"] = 0.5 * d["m"] * G * d["lr"] / d["L"]     # static load of one front tyre
     d["fz0r"] = 0.5 * d["m"] * G * d["lf"] / d["L"]
-    d["me"] = d["m"] + 4.0 * d["iy"] / d["Rw"] ** 2      # four wheels of iy each
+    d["me"] = d["m"] + d["iy"] / d["Rw"] ** 2      # eq. 5: iy is the four wheels together
     return d
 
 
@@ -37,9 +37,11 @@ def ky_shape(x, q):
     return math.sin(2.0 * math.atan(x / q))
 
 
-def test_defaults_select_dugoff_and_fit_table_one(defaults8):
-    """Dugoff stays the default (golden results unchanged); Cf, Cr are Table I's."""
-    assert defaults8["tyre_model"] == 0.0
+def test_defaults_select_magic_formula_and_fit_table_one(defaults8):
+    """The Magic Formula is the default tyre, with rolling resistance 0.012;
+    Cf, Cr are Table I's at the static load."""
+    assert defaults8["tyre_model"] == 1.0
+    assert defaults8["f_rr"] == 0.012
     assert defaults8["Cf"] == defaults8["Cr"] == 57500.0
     assert defaults8["Fz_nom_f"] == defaults8["Fz_nom_r"] == 0.0   # = static load
 
@@ -233,7 +235,7 @@ def test_standstill_without_torque_stays_exactly_still(vehicle8dof):
 @pytest.mark.parametrize("f_rr", [0.0, 0.015])
 def test_coast_down_follows_drag_and_rolling_resistance(vehicle8dof, car, f_rr):
     """me v' = -cx v^2 - f_rr m g (rolling resistance f_rr Fz Rw per wheel),
-    me = m + 4 iy / Rw^2; 1e-4 relative (the slip the resisting force needs)."""
+    me = m + iy / Rw^2; 1e-4 relative (the slip the resisting force needs)."""
     v0, cx = 20.0, 0.42
     res = vehicle8dof.run(20.0, {**PAC, "vx0": v0, "cx": cx, "f_rr": f_rr})
     t, b = res["time"], cx / car["me"]

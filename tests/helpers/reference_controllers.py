@@ -45,7 +45,8 @@ def project_reference(window: TrajectoryWindow, px: float, py: float) -> dict[st
         if (end == 0 and along < 0.0) or (end == -1 and along > 0.0):
             return {"offset": -(px - window.x[end]) * ty + (py - window.y[end]) * tx, "psi_path": heading,
                     "kappa": float(window.kappa[end]), "dkappa_ds": 0.0, "v": float(window.v[end]),
-                    "a": float(window.a[end])}
+                    "a": float(window.a[end]), "x": float(window.x[end] + along * tx),
+                    "y": float(window.y[end] + along * ty)}
     step = window.s[i + 1] - window.s[i]
     seg = (window.x[i], window.y[i], step * math.cos(window.psi[i]), step * math.sin(window.psi[i]),
            window.x[i + 1], window.y[i + 1], step * math.cos(window.psi[i + 1]),
@@ -67,7 +68,7 @@ def project_reference(window: TrajectoryWindow, px: float, py: float) -> dict[st
     return {"offset": (dx * (py - y) - dy * (px - x)) / max(math.hypot(dx, dy), 1e-300),
             "psi_path": lerp(window.psi), "kappa": lerp(window.kappa),
             "dkappa_ds": float((window.kappa[i + 1] - window.kappa[i]) / step),
-            "v": lerp(window.v), "a": lerp(window.a)}
+            "v": lerp(window.v), "a": lerp(window.a), "x": float(x), "y": float(y)}
 
 
 class ReferenceBackstepping:
@@ -101,7 +102,11 @@ class ReferenceBackstepping:
         torque = min(c.limits.max_torque, max(c.limits.min_torque, lon.torque))
         meas = LateralMeasurement(y_l=preview["offset"], psi_l=psi_l, vy=vy, r=r, vx=vx,
                                   vx_dot=nominal_vx_dot(torque, vy, r, params), rho=preview["kappa"],
-                                  rho_dot=preview["dkappa_ds"] * vx)
+                                  rho_dot=preview["dkappa_ds"] * vx, rho_cg=at_cg["kappa"],
+                                  rho_cg_dot=at_cg["dkappa_ds"] * vx,
+                                  turn=wrap_angle(preview["psi_path"] - at_cg["psi_path"]),
+                                  bend=math.cos(at_cg["psi_path"]) * (preview["y"] - at_cg["y"])
+                                  - math.sin(at_cg["psi_path"]) * (preview["x"] - at_cg["x"]))
         lat = lateral_law(meas, self.mu_hat, params, gains, c.g_mu, c.adaptation)
         rate = c.limits.max_delta_rate * dt
         delta = min(self.delta + rate, max(self.delta - rate, lat.delta))
@@ -110,6 +115,6 @@ class ReferenceBackstepping:
         self.mu_hat_dot = 0.0 if limited or vx < gains.v_min else lat.mu_hat_dot
         v3 = lat.V2 + ((c.mu_true - self.mu_hat) ** 2 / (2.0 * c.g_mu) if c.g_mu > 0.0 else 0.0)
         return {"delta": delta, "torque": torque, "yL": preview["offset"], "psiL": psi_l,
-                "yc": at_cg["offset"], "ex": lon.ex, "vx_ref": at_cg["v"], "rho": preview["kappa"],
+                "yc": preview["offset"] - gains.ls * psi_l, "yc_cg": at_cg["offset"], "ex": lon.ex, "vx_ref": at_cg["v"], "rho": preview["kappa"],
                 "mu_hat": self.mu_hat, "alpha_vy": float(lat.alpha[0]), "alpha_r": float(lat.alpha[1]),
                 "z_vy": float(lat.z[0]), "z_r": float(lat.z[1]), "V": lon.V, "V2": lat.V2, "V3": v3}

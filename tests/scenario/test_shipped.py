@@ -43,7 +43,7 @@ def test_cosim_scenarios_lists_one_line_each(capsys):
     lines = capsys.readouterr().out.splitlines()
     assert [line.split()[0] for line in lines] == YAML_FILES
     lane = next(line for line in lines if line.startswith("lane_change "))
-    assert "45 s" in lane and "Two-lane road" in lane
+    assert "45 s" in lane and "two-lane road" in lane
     assert listing().splitlines() == lines
 
 

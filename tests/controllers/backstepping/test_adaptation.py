@@ -68,7 +68,7 @@ def test_side_wind_on_a_straight_road_drifts_the_paper_estimate_not_the_robust_o
     assert paper["mu_hat"][-1] < 0.5                    # reads the wind as lost grip: 1.0 -> 0.42 in 15 s
     assert np.all(robust["mu_hat"] == 1.0)             # no excitation on a straight road: frozen
     for result in (paper, robust):                     # both still hold the lane against the wind
-        assert np.max(np.abs(result["yc"])) < 0.02
+        assert np.max(np.abs(result["yc_cg"])) < 0.02
     # without the excitation condition the consistent regressor alone drifts as well
     blind = run(adaptive("robust", mu0=1.0, a_excite=0.0), LinePath(), 15.0, wind=wind)
     assert blind["mu_hat"][-1] < 0.9
@@ -91,7 +91,7 @@ def test_estimate_follows_a_friction_drop(adaptation):
     assert np.max(np.abs(mu_hat[t < 5.0] - 1.0)) < 0.01
     assert abs(mu_hat[-1] - 0.5) < 0.01
     assert np.all(np.diff(mu_hat[t > 6.0]) <= 1e-12)    # falls toward 0.5 without overshoot above
-    assert np.max(np.abs(result["yc"][t > 15.0])) < 0.01
+    assert np.max(np.abs(result["yc_cg"][t > 15.0])) < 0.01
 
 
 def test_estimate_is_frozen_at_a_stop_while_the_paper_one_moves():

@@ -90,11 +90,13 @@ def test_world_frame_circle_faithful_vs_feedforward_cg():
     assert faithful["yL"][-1] == pytest.approx(expected[0], abs=3e-3)
     assert faithful["psiL"][-1] == pytest.approx(expected[1], abs=5e-4)
     cg_offset = CirclePath(1.0 / RHO).offset_of(faithful["plant_x"][-1], faithful["plant_y"][-1])
-    assert faithful["yc"][-1] == pytest.approx(cg_offset, abs=1e-9)
-    assert abs(faithful["yc"][-1]) > 0.02
+    assert faithful["yc_cg"][-1] == pytest.approx(cg_offset, abs=1e-9)
+    assert abs(faithful["yc_cg"][-1]) > 0.02
+    # the paper's yc is yL - ls psiL exactly
+    assert faithful["yc"][-1] == faithful["yL"][-1] - 5.0 * faithful["psiL"][-1]
     # the variant puts the CG on the path; the remainder is third order in ls rho
-    assert abs(variant["yc"][-1]) < 2e-3
-    assert np.all(np.abs(variant["yc"][-300:]) < 2e-3)
+    assert abs(variant["yc_cg"][-1]) < 2e-3
+    assert np.all(np.abs(variant["yc_cg"][-300:]) < 2e-3)
 
 
 def test_adaptation_drifts_at_the_faithful_equilibrium_but_not_the_feedforward_one():
