@@ -19,6 +19,11 @@ point and e its signed offset (left positive),
 delta = psi_e + atan(-k_stanley e / (k_soft + vx)).
 
 No trajectory yet (an all-zero window): steering held, torque 0, internals 0.
+
+SpeedLoop is the speed half alone, for a vehicle driven by a scripted speed
+(the lead of scenarios/vehicle_following.yaml): the same PI on torque, its
+reference v_ref from any source (a table over time), the feed-forward
+acceleration the finite difference of v_ref between two steps.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-from cosim.component import Component, ComponentError, Value
+from cosim.component import Component, ComponentError, Port, Value
 from controllers.tracking import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits,
                                         InputReader, SpeedPI, SteeringLimiter, StepClock,
                                         empty_window_outputs, finite_outputs, path_errors)
@@ -139,3 +144,37 @@ class StanleyController(_BaselineController):
         front = foot(window, x + self.params.lf * math.cos(psi), y + self.params.lf * math.sin(psi), SLOT)
         heading_error = wrap_angle(front[4] - psi)
         return heading_error + math.atan(-self.k_stanley * front[3] / (self.k_soft + vx))
+
+
+class SpeedLoop(Component):
+    """PI speed loop on torque for a scripted speed reference (see module docstring).
+
+    Args:
+        m, iy, Rw: nominal vehicle parameters (Table I defaults) for the feed-forward.
+        kp, ki: PI speed gains [N/(m/s)], [N/m].
+        max_torque, min_torque: torque limits [N.m]; period: first dt [s].
+    """
+
+    inputs = (Port("vx", unit="m/s", description="longitudinal speed, body axes"),
+              Port("v_ref", unit="m/s", description="speed reference"))
+    outputs = (Port("torque", unit="N.m", description="total wheel torque command"),
+               Port("ex", unit="m/s", description="speed error vx - v_ref"))
+    default_period = 0.01
+
+    def __init__(self, *, m: float = 1500.0, iy: float = 1.2, Rw: float = 0.3, kp: float = 3000.0,
+                 ki: float = 600.0, max_torque: float = 3000.0, min_torque: float = -6000.0,
+                 period: float = 0.01) -> None:
+        params = VehicleParams(m=m, iy=iy, Rw=Rw)
+        self.speed = SpeedPI(kp, ki, params.me, params.Rw, ActuatorLimits(min_torque=min_torque,
+                                                                           max_torque=max_torque))
+        self.clock = StepClock(period)
+        self.v_prev: float | None = None
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """One step: torque for the error vx - v_ref with the reference's slope fed forward."""
+        dt = self.clock.advance(t)
+        vx, v_ref = float(inputs["vx"]), float(inputs["v_ref"])
+        a_ref = 0.0 if self.v_prev is None else (v_ref - self.v_prev) / dt
+        self.v_prev = v_ref
+        ex = vx - v_ref
+        return finite_outputs(("torque", "ex"), (self.speed.torque(ex, a_ref, dt), ex), t)

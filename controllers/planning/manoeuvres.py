@@ -12,6 +12,8 @@ the controller follows) and the alternative.
     obstacle_avoidance  static obstacles {s, lane, length, width}: go around
                         with a lateral margin when the next lane is free,
                         otherwise stop `gap` metres before; alt: the other choice
+    vehicle_following   the lane_keeping options; the speed follows a lead vehicle
+                        with a constant-time-gap policy (controllers.planning.following)
 
 A transition over length L with lateral change D at speed v has a peak lateral
 acceleration 10/sqrt(3) D v^2 / L^2 and a peak lateral jerk 60 D v^3 / L^3;
@@ -25,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from controllers.planning.following import FOLLOWING_KEYS, TimeGapPolicy
 from controllers.road.builders import Road
 from controllers.spec import SpecError, spec_number
 
@@ -171,6 +174,7 @@ class ManoeuvrePlan:
         alt_lane: target lane of that dynamic alternative.
         obstacles: the static obstacles.
         comfort: the comfort limits the manoeuvre was planned with.
+        following: the time-gap policy of vehicle_following (None for the others).
     """
 
     kind: str
@@ -179,6 +183,7 @@ class ManoeuvrePlan:
     alt_lane: int
     obstacles: tuple[Obstacle, ...] = field(default_factory=tuple)
     comfort: Comfort = field(default_factory=Comfort)
+    following: TimeGapPolicy | None = None
 
 
 def transition_length(delta: float, v: float, comfort: Comfort) -> float:
@@ -312,12 +317,13 @@ def plan_manoeuvre(road: Road, lane: int, spec, v_design: float, where: str = "m
     Args:
         road: the road.
         lane: the ego lane at the start.
-        spec: None or {type: lane_keeping | lane_change | obstacle_avoidance, ...}
+        spec: None or {type: lane_keeping | lane_change | obstacle_avoidance | vehicle_following, ...}
             with lane_change: at (m), to_lane (or to_offset, m from the
             reference line), length (optional, m), or a list
             changes: [{at, to_lane | to_offset, length}, ...] (e.g. a double
             lane change); obstacle_avoidance: obstacles: [{s, lane, length,
-            width, offset}]; and any Comfort field (a_lat, j_lat, min_length,
+            width, offset}]; vehicle_following: the TimeGapPolicy fields
+            (time_gap, standstill, a_max, d_max, j_max, k_gap, k_speed, range); and any Comfort field (a_lat, j_lat, min_length,
             margin, gap, vehicle_width, vehicle_length).
         v_design: speed used for transition lengths, m/s.
         where: location of the spec, for error messages.
@@ -327,7 +333,7 @@ def plan_manoeuvre(road: Road, lane: int, spec, v_design: float, where: str = "m
         raise SpecError(f"{where}: expected a mapping with a type, got {spec!r}")
     kind = spec["type"]
     own = {"lane_keeping": set(), "lane_change": {"at", "to_lane", "to_offset", "length", "changes"},
-           "obstacle_avoidance": {"obstacles"}}
+           "obstacle_avoidance": {"obstacles"}, "vehicle_following": FOLLOWING_KEYS}
     if kind not in own:
         raise SpecError(f"{where}.type: unknown manoeuvre {kind!r} (known: {', '.join(own)})")
     extra = set(spec) - own[kind] - {"type"} - set(Comfort.__dataclass_fields__)
@@ -339,6 +345,9 @@ def plan_manoeuvre(road: Road, lane: int, spec, v_design: float, where: str = "m
     keep = Option(LateralPlan(d_lane))
     if kind == "lane_keeping":
         return ManoeuvrePlan(kind, keep, None, _neighbour(road, lane), comfort=comfort)
+    if kind == "vehicle_following":
+        return ManoeuvrePlan(kind, keep, None, _neighbour(road, lane), comfort=comfort,
+                             following=TimeGapPolicy.from_spec(spec, where))
     if kind == "lane_change":
         changes = _lane_changes(road, d_lane, spec, v_design, comfort, where)
         ref = Option(LateralPlan(d_lane, changes))

@@ -35,6 +35,12 @@ Parameters in a scenario YAML, for example:
                 obstacles: [{s: 250, lane: 0, length: 4, width: 2}]}
     speed: {v_max: 12, a_lat_max: 2, a_max: 1, d_max: 1.5, j_max: 1}
 Obstacle and lane-change positions are reference arc lengths (first lap on a loop).
+
+With `manoeuvre: {type: vehicle_following, ...}` the planner also has the
+inputs lead_x, lead_y, lead_vx (the lead vehicle, connected from its plant)
+and the outputs gap, gap_ref, a_follow; the recommended window's speed and
+acceleration, and v_ref, come from the time-gap policy, capped by the road's
+profile (controllers.planning.following).
 """
 
 from __future__ import annotations
@@ -46,6 +52,7 @@ import numpy as np
 
 from cosim.component import Component, ComponentError, Port, Value
 from controllers.road.geometry import SpecError, spec_number
+from controllers.planning.following import FOLLOWING_OUTPUTS, LEAD_INPUTS, Follower
 from controllers.spec import MAX_LENGTH, MAX_REACH
 from controllers.planning.manoeuvres import (LateralPlan, ManoeuvrePlan, Option, Transition, offset_profile,
                                    plan_manoeuvre, transition_length)
@@ -219,6 +226,11 @@ class Planner(Component):
             raise ComponentError(f"parameter {exc}") from None
         self.progress = self.offset = 0.0
         self.road_limit = float(max(np.abs(self.road.edges()))) + self.off_road
+        self.follower: Follower | None = None
+        if self.plan.following is not None:
+            self.follower = Follower(self.road, self.plan.following, self.plan.comfort.vehicle_length,
+                                     self.road_limit)
+            self.inputs, self.outputs = Planner.inputs + LEAD_INPUTS, Planner.outputs + FOLLOWING_OUTPUTS
         self.ref_route: RoutePlan | None = None
         self.alt_route: RoutePlan | None = None
         self.holding = False
@@ -259,6 +271,9 @@ class Planner(Component):
             raise ComponentError(f"at t = {t0}: {exc}") from None
         self.offset = proj.lateral
         self.holding = False
+        if self.follower is not None:
+            self.follower.reset()
+            self.follower.read(t0, inputs)
         return self._outputs(t0, psi, vx)
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
@@ -277,6 +292,8 @@ class Planner(Component):
             self.progress = proj.s
         self._check_on_road(t, x, y, proj.distance)
         self.offset = proj.lateral
+        if self.follower is not None:
+            self.follower.read(t, inputs)
         return self._outputs(t, psi, vx)
 
     # ---- helpers ----------------------------------------------------------
@@ -337,6 +354,10 @@ class Planner(Component):
         out["s_vehicle"] = float(self.progress)
         out["lateral_offset"] = float(self.offset - d_now)
         out["v_ref"] = float(np.interp(self.progress, self.grid.s, self.ref_route.v))
+        if self.follower is not None:
+            sigma = self.ref_route.sigma
+            at = float(np.interp(self.progress, self.grid.s, sigma)) - sigma[idx.start]
+            self.follower.apply(t, out, self.progress, vx, out["ref_s"] - at)
         out["manoeuvre_state"] = self._update_state(vx)
         if self.holding:      # stopped: the reference is rest, exactly, wherever the car stands
             out["ref_v"] = np.zeros(WINDOW_POINTS)

@@ -1,4 +1,4 @@
-"""Run metrics: tracking errors, actuator effort, friction estimate, cone hits.
+"""Run metrics: tracking errors, actuator effort, friction estimate, cone hits, vehicle following.
 
 `compute_metrics(run_dir)` reads a run folder and returns the metrics the
 paper's experiments are judged by; `write_metrics(run_dir)` merges them into
@@ -25,6 +25,20 @@ Definitions (t0 = first tick + `metrics.skip_s` from the scenario, default 0):
 - cone_hits : cones touched by the body rectangle (see metrics_cones), when the
   scenario lists cones under `metrics.cones` or
   `components.planner.parameters.cones`.
+
+Vehicle following, when the planner follows a lead (its input planner.lead_x
+is connected: the lead is the component feeding it). gap and gap_ref are the
+planner's bumper-to-bumper gap along the road and its desired gap
+standstill + time_gap * vx, held between planner steps:
+- rms_gap_error, max_abs_gap_error : of gap - gap_ref (m), as rms_* / max_abs_*.
+- min_time_gap : min gap / vehicle.vx over the ticks with vx >= 1 m/s (s).
+- min_ttc : time to collision, min gap / (vehicle.vx - lead.vx) over the ticks
+  where the follower is closing in (s); left out if it never closes in.
+- gap_overshoot : max(gap_ref - gap, 0): how far the follower came closer than
+  the desired gap (m).
+- collisions : contacts between the two body rectangles (cosim.analysis.collisions;
+  body size as for cone_hits), each run of touching ticks counted once, from
+  vehicle.x/y/psi and the lead's x/y/psi at every tick.
 """
 
 from __future__ import annotations
@@ -35,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.analysis.collisions import bodies_overlap, contact_events
 from cosim.analysis.cones import cone_hits
 from cosim.results.jsonfile import write_text_atomically
 from cosim.analysis.rundata import (AnalysisError, RunData, load_run, loaded_run,
@@ -44,7 +59,9 @@ METRIC_NAMES = (
     "rms_yc", "max_abs_yc", "rms_yc_cg", "max_abs_yc_cg", "rms_yL", "max_abs_yL", "rms_psiL", "max_abs_psiL",
     "rms_ex", "max_abs_ex", "max_abs_delta", "max_abs_delta_rate", "max_abs_ay",
     "mu_true_final", "mu_hat_final", "cone_hits",
+    "rms_gap_error", "max_abs_gap_error", "min_time_gap", "min_ttc", "gap_overshoot", "collisions",
 )
+TIME_GAP_MIN_SPEED = 1.0    # m/s: min_time_gap ignores slower ticks (gap / vx grows without bound at rest)
 NOTES_FILE = "metrics_notes.txt"
 
 
@@ -228,6 +245,53 @@ def _cone_metric(run: RunData, report: MetricsReport) -> None:
         report.notes.append("cone_hits: vehicle.x, vehicle.y or vehicle.psi not recorded")
 
 
+def lead_component(run: RunData) -> str | None:
+    """The component that feeds planner.lead_x (the lead vehicle), or None without one."""
+    source = run.source_of("planner.lead_x")
+    return None if source is None else source.split(".")[0]
+
+
+def _collision_metric(run: RunData, lead: str, report: MetricsReport) -> None:
+    poses = [[run.signal(f"{who}.{s}") for s in ("x", "y", "psi")] for who in ("vehicle", lead)]
+    if any(p is None for pose in poses for p in pose):
+        report.notes.append(f"collisions: vehicle.x/y/psi or {lead}.x/y/psi not recorded")
+        return
+    front = run.lookup("metrics.vehicle_front")
+    overlap = bodies_overlap(tuple(poses[0]), tuple(poses[1]),
+                             length=run.number("metrics.vehicle_length", 4.5),
+                             width=run.number("metrics.vehicle_width", 1.8),
+                             front=None if front is None else run.number("metrics.vehicle_front", 0.0))
+    report.values["collisions"] = contact_events(overlap)
+
+
+def _following_metrics(run: RunData, mask: np.ndarray, report: MetricsReport) -> None:
+    lead = lead_component(run)
+    if lead is None:
+        return
+    _collision_metric(run, lead, report)
+    names = ("planner.gap", "planner.gap_ref", "vehicle.vx", f"{lead}.vx")
+    found = [run.signal(n) for n in names]
+    if any(v is None for v in found) or not mask.any():
+        report.notes.append(f"gap metrics: {', '.join(names)} not all recorded (or no ticks)")
+        return
+    gap, gap_ref, vx, v_lead = (v[mask] for v in found)
+    t = run.time[mask]
+    if not _finite_or_note("gap metrics", t, gap - gap_ref + vx + v_lead, report.notes):
+        return
+    error = gap - gap_ref
+    report.values["rms_gap_error"] = rms(t, error)
+    report.values["max_abs_gap_error"] = float(np.max(np.abs(error)))
+    moving = vx >= TIME_GAP_MIN_SPEED
+    if moving.any():
+        report.values["min_time_gap"] = float(np.min(gap[moving] / vx[moving]))
+    closing = vx > v_lead
+    if closing.any():
+        report.values["min_ttc"] = float(np.min(np.maximum(gap[closing], 0.0) / (vx - v_lead)[closing]))
+    else:
+        report.notes.append("min_ttc: the follower never closes in on the lead")
+    report.values["gap_overshoot"] = float(max(np.max(-error), 0.0))
+
+
 def analyse_run(run: RunData, skip_s: float | None = None) -> MetricsReport:
     """Compute every metric the run's signals allow, with notes on the rest.
 
@@ -250,6 +314,7 @@ def analyse_run(run: RunData, skip_s: float | None = None) -> MetricsReport:
         _delta_rate(run, mask, report)
     _friction_metrics(run, report)
     _cone_metric(run, report)
+    _following_metrics(run, mask, report)
     return report
 
 

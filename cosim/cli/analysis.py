@@ -2,7 +2,7 @@
 
 `register(app)` adds them to the main typer app (cosim/cli/app.py):
 
-    cosim plot RUN_DIR [--layout track|manoeuvre|speed]
+    cosim plot RUN_DIR [--layout track|manoeuvre|speed|following]
     cosim compare RUN_DIR [RUN_DIR ...] [--out DIR]
     cosim sweep SCENARIO --vary PATH=LOW:HIGH ... --samples N [--seed S] [--set PATH=VALUE ...]
                 [--scheduler ADDRESS] [--out DIR] [--transport inproc|zenoh] [--method lhs|uniform]
@@ -32,7 +32,7 @@ from cosim.results.folders import stamped_folder
 
 def plot(run_dir: Path = typer.Argument(..., help="run folder"),
          layout: Optional[str] = typer.Option(None, "--layout",
-                                              help="track | manoeuvre | speed (default: from the scenario)")
+                                              help="track | manoeuvre | speed | following (default: from the scenario)")
          ) -> None:
     """Redraw the paper-style figure of a run into its folder."""
     from cosim.figures.layouts import draw_figures
@@ -68,7 +68,7 @@ def compare(run_dirs: list[Path] = typer.Argument(
             out: Optional[Path] = typer.Option(
                 None, "--out", help="output folder (default: comparisons/compare-<UTC time>)"),
             layout: Optional[str] = typer.Option(
-                None, "--layout", help="track | manoeuvre | speed (Fig. 4.3/4.4: one column per run)")
+                None, "--layout", help="track | manoeuvre | speed (Fig. 4.3/4.4: one column per run) | following")
             ) -> None:
     """Overlay one or more runs' figures and tabulate their metrics side by side."""
     from cosim.figures.compare import compare_runs

@@ -34,6 +34,12 @@ METRIC_INFO: dict[str, tuple[str, str]] = {
     "mu_true_final": ("1", "road friction at the end"),
     "mu_hat_final": ("1", "friction estimate at the end"),
     "cone_hits": ("", "cones touched"),
+    "rms_gap_error": ("m", "gap to the lead minus desired gap"),
+    "max_abs_gap_error": ("m", "gap to the lead minus desired gap"),
+    "min_time_gap": ("s", "smallest gap / speed (moving)"),
+    "min_ttc": ("s", "smallest time to collision (closing in)"),
+    "gap_overshoot": ("m", "deepest intrusion into the desired gap"),
+    "collisions": ("", "contacts with the lead"),
 }
 
 

@@ -1,6 +1,6 @@
 """Paper-style figures of a run (or several runs overlaid), saved as PNG.
 
-Three layouts, after the paper:
+Four layouts, after the paper:
 - "track" (Fig. 4): twelve panels, 4 x 3: x-y map at equal aspect with the
   planned path (and the planner's road: lane edges, obstacles;
   cosim.figures.road), curvature rho, speed tracking vx vs vx_ref, speed
@@ -15,9 +15,13 @@ Three layouts, after the paper:
 - "speed" (Fig. 4.3 and 4.4): one column per run, speed tracking above its
   speed error ex and the aero force: `cosim compare RUN_NO_AERO RUN_AERO
   --layout speed` gives the paper's two panels side by side.
+- "following" (vehicle following, cosim.figures.following): nine panels: map
+  with both vehicles, gap, both speeds, time gap and TTC, acceleration,
+  steering, the follower's lateral errors yc, yL, psiL.
 
-The layout comes from the scenario's `metrics.figures` ("track" or
-"manoeuvre") when given; else a scenario name with "lane", "obstacle",
+The layout comes from the scenario's `metrics.figures` when given; else a run
+with a lead vehicle (the planner's lead_x input connected) means following;
+else a scenario name with "lane", "obstacle",
 "iso3888" or "manoeuvre" in it means manoeuvre, one with "satory", "track"
 or "friction" means track; else a planner that moved off its lane
 (`planner.lateral_offset` not always 0) means manoeuvre; else track. (The
@@ -41,10 +45,12 @@ from PIL import Image
 
 from cosim.figures import fidelity_panels as fp
 from cosim.figures import panels as pan
+from cosim.figures.following import following_figure
 from cosim.figures import signals as sig
+from cosim.analysis.metrics import lead_component
 from cosim.analysis.rundata import AnalysisError, RunData, loaded_run
 
-LAYOUTS = ("track", "manoeuvre", "speed")
+LAYOUTS = ("track", "manoeuvre", "speed", "following")
 MANOEUVRE_WORDS = ("lane", "obstacle", "iso3888", "manoeuvre", "maneuver")
 TRACK_WORDS = ("satory", "track", "friction")
 DPI = 110
@@ -52,7 +58,7 @@ PNG_COMPRESS_LEVEL = 1   # zlib level: same pixels, ~15 % larger file, encodes a
 
 
 def choose_layout(run: RunData) -> str:
-    """"track" or "manoeuvre" for this run (rules in the module docstring).
+    """"track", "manoeuvre" or "following" for this run (rules in the module docstring).
 
     Raises:
         AnalysisError: the scenario's `metrics.figures` is not a known layout.
@@ -63,6 +69,8 @@ def choose_layout(run: RunData) -> str:
             raise AnalysisError(f"{run.run_dir / 'manifest.json'}: scenario.metrics.figures: "
                                 f"expected one of {', '.join(LAYOUTS)}, found {hint!r}")
         return hint
+    if lead_component(run) is not None:
+        return "following"
     name = str(run.lookup("name", "")).lower()
     if any(word in name for word in MANOEUVRE_WORDS):
         return "manoeuvre"
@@ -152,13 +160,15 @@ def build_figure(runs: Sequence[RunData], layout: str | None = None) -> tuple[Fi
 
     Args:
         runs: loaded runs (at least one); overlaid in order.
-        layout: "track", "manoeuvre" or None to choose from the first run.
+        layout: one of LAYOUTS, or None to choose from the first run.
     """
     if not runs:
         raise AnalysisError("no run to draw")
     layout = layout or choose_layout(runs[0])
     if layout not in LAYOUTS:
         raise AnalysisError(f"layout: expected one of {', '.join(LAYOUTS)}, found {layout!r}")
+    if layout == "following":
+        return following_figure(runs, _title(runs, "vehicle following")), layout
     builders = {"track": track_figure, "manoeuvre": manoeuvre_figure, "speed": speed_figure}
     fig = builders[layout](runs)
     return fig, layout

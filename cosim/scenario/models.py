@@ -262,7 +262,7 @@ class MetricsSpec(BaseModel):
     vehicle_length: PositiveFloat = 4.5
     vehicle_width: PositiveFloat = 1.8
     vehicle_front: PositiveFloat | None = None   # CG to front bumper, m; None: half the length
-    figures: Literal["track", "manoeuvre"] | None = None   # None: chosen from the run
+    figures: Literal["track", "manoeuvre", "following"] | None = None   # None: chosen from the run
 
 
 class Scenario(BaseModel):

@@ -339,3 +339,82 @@ def test_write_metrics_with_a_loaded_run_does_not_read_the_csv_again(tmp_path):
     other = write_run(tmp_path / "other", T, {"controller.yc": T})
     with pytest.raises(AnalysisError, match="loaded from another folder"):
         write_metrics(other, run=run)
+
+
+# ---- vehicle following ------------------------------------------------------------
+FOLLOWING_LINKS = ["lead.x -> planner.lead_x", "lead.y -> planner.lead_y", "lead.vx -> planner.lead_vx"]
+
+
+def _following_run(path, lead_x, follower_x, lead_v, follower_v, gap_ref, lead_y=None, lead_psi=None):
+    """Two cars on the x axis; the planner's gap is the bumper-to-bumper distance (4.5 m bodies)."""
+    n = len(lead_x)
+    zeros = np.zeros(n)
+    columns = {"vehicle.x": follower_x, "vehicle.y": zeros, "vehicle.psi": zeros, "vehicle.vx": follower_v,
+               "lead.x": lead_x, "lead.y": zeros if lead_y is None else lead_y,
+               "lead.psi": zeros if lead_psi is None else lead_psi, "lead.vx": lead_v,
+               "planner.gap": lead_x - follower_x - 4.5, "planner.gap_ref": gap_ref}
+    return write_run(path, T[:n], columns, connections=FOLLOWING_LINKS)
+
+
+def test_following_metrics_on_an_analytic_approach(tmp_path):
+    """Follower at 12 m/s closes on a lead at 10 m/s from a 30 m gap: gap(t) = 30 - 2 t."""
+    gap = 30.0 - 2.0 * T
+    lead_x = 100.0 + 10.0 * T
+    run = _following_run(tmp_path / "r", lead_x, lead_x - 4.5 - gap, np.full(T.size, 10.0),
+                         np.full(T.size, 12.0), np.full(T.size, 21.0))
+    m = compute_metrics(run)
+    error = gap - 21.0
+    assert m["max_abs_gap_error"] == pytest.approx(9.0)
+    assert m["rms_gap_error"] == pytest.approx(rms(T, error), rel=1e-12)
+    assert m["min_time_gap"] == pytest.approx(26.0 / 12.0)           # at t = 2 s
+    assert m["min_ttc"] == pytest.approx(26.0 / 2.0)
+    assert m["gap_overshoot"] == 0.0                                  # never closer than 21 m
+    assert m["collisions"] == 0
+
+
+def test_gap_overshoot_ttc_and_collisions_count_contacts(tmp_path):
+    """The gap dips through zero twice: two contacts, overshoot = gap_ref - min gap."""
+    gap = 1.0 - 2.0 * np.abs(np.sin(np.pi * T))      # 1 m, down to -1 m at t = 0.5 and 1.5 s
+    follower_v = 5.0 + np.cos(np.pi * T)
+    run = _following_run(tmp_path / "r", 50.0 + gap + 4.5, np.full(T.size, 50.0), np.full(T.size, 5.0),
+                         follower_v, np.full(T.size, 2.0))
+    m = compute_metrics(run)
+    assert m["collisions"] == 2
+    assert m["gap_overshoot"] == pytest.approx(3.0)
+    assert m["min_ttc"] == 0.0                       # closing while touching
+
+
+def test_side_by_side_cars_do_not_collide_and_a_turned_car_does(tmp_path):
+    from cosim.analysis.collisions import bodies_overlap
+    x, zero = np.array([0.0]), np.array([0.0])
+    beside = bodies_overlap((x, zero, zero), (x, np.array([1.81]), zero))
+    touching = bodies_overlap((x, zero, zero), (x, np.array([1.8]), zero))
+    assert not beside[0] and touching[0]
+    # nose to nose: clear at 4.6 m CG to CG; turned 90 degrees its half width 0.9 m faces the nose
+    assert not bodies_overlap((x, zero, zero), (np.array([4.6]), zero, zero))[0]
+    assert not bodies_overlap((x, zero, zero), (np.array([3.2]), zero, np.array([np.pi / 2])))[0]
+    assert bodies_overlap((x, zero, zero), (np.array([3.1]), zero, np.array([np.pi / 2])))[0]
+    # turned 45 degrees, its rear-left corner (-2.25, 0.9) in its own axes lies at
+    # (-(2.25 + 0.9) / sqrt 2, -(2.25 - 0.9) / sqrt 2) from its centre; put that corner on y = 0
+    c = 1.0 / np.sqrt(2.0)
+    reach, lift = 2.25 + 3.15 * c, 1.35 * c
+    for dx, hit in ((-0.01, True), (0.01, False)):
+        b = (np.array([reach + dx]), np.array([lift]), np.array([np.pi / 4]))
+        assert bodies_overlap((x, zero, zero), b)[0] == hit
+
+
+def test_runs_without_a_lead_have_no_following_metrics(tmp_path):
+    run = write_run(tmp_path / "r", T, {"vehicle.vx": np.ones(T.size), "planner.gap": np.ones(T.size)},
+                    connections=["vehicle -> planner"])
+    m = compute_metrics(run)
+    assert not {"collisions", "min_ttc", "rms_gap_error"} & set(m)
+
+
+def test_lead_that_never_closes_in_gets_a_note_not_a_ttc(tmp_path):
+    lead_x = 100.0 + 12.0 * T
+    run = _following_run(tmp_path / "r", lead_x, 10.0 * T, np.full(T.size, 12.0), np.full(T.size, 10.0),
+                         np.full(T.size, 18.0))
+    from cosim.analysis.metrics import analyse_run
+    report = analyse_run(load_run(run))
+    assert "min_ttc" not in report.values
+    assert any("never closes in" in note for note in report.notes)

@@ -1,4 +1,4 @@
-"""Pure Pursuit and Stanley baselines with the PI speed loop, on the linear plant."""
+"""Pure Pursuit and Stanley baselines with the PI speed loop, and the speed loop alone, on the linear plant."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from controllers.backstepping.component import BacksteppingController
-from controllers.baselines import PurePursuitController, StanleyController
+from controllers.baselines import PurePursuitController, SpeedLoop, StanleyController
 from controllers.linear_plant import LinearPlant
 from controllers.vehicle_params import VehicleParams
 from cosim.component import ComponentError
@@ -96,3 +96,30 @@ def test_bad_parameters():
         StanleyController(k_stanley=-1.0)
     with pytest.raises(ComponentError, match="speed loop gains need kp > 0"):
         StanleyController(kp=0.0)
+
+
+def _speed_loop_run(reference, seconds: float, vx0: float, cx: float = 0.42):
+    """SpeedLoop alone on the linear plant driving straight; (t, vx, v_ref) per 10 ms step."""
+    loop, plant = SpeedLoop(), LinearPlant(PARAMS, vx0=vx0, cx=cx, substeps=2)
+    rows = []
+    for k in range(int(round(seconds / 0.01)) + 1):
+        t = 0.01 * k
+        vx = plant.outputs()["vx"]
+        out = loop.step(t, {"vx": vx, "v_ref": reference(t)})
+        assert out["ex"] == vx - reference(t)
+        rows.append((t, vx, reference(t)))
+        plant.step(0.01, 0.0, out["torque"])
+    return np.array(rows).T
+
+
+def test_speed_loop_tracks_a_ramp_with_its_slope_fed_forward():
+    """A 0.5 m/s2 ramp from 8 to 13 m/s: the feed-forward and the integral leave no lag at the end."""
+    t, vx, ref = _speed_loop_run(lambda t: float(np.interp(t, [0, 5, 15], [8, 8, 13])), 25.0, vx0=8.0)
+    ramp = (t > 8.0) & (t < 15.0)
+    assert np.max(np.abs(vx[ramp] - ref[ramp])) < 0.05
+    assert abs(vx[-1] - 13.0) < 1e-3
+
+
+def test_speed_loop_refuses_bad_gains():
+    with pytest.raises(ComponentError, match="kp > 0"):
+        SpeedLoop(kp=0.0)

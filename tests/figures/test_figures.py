@@ -438,3 +438,41 @@ def test_manoeuvre_map_is_equal_aspect_on_the_manoeuvre_with_a_steering_inset(tm
     insets = [child for child in steering.get_children() if hasattr(child, "get_title")
               and child.get_title() == "manoeuvre start"]
     assert len(insets) == 1
+
+
+def _following_run(path):
+    """Follower and lead on the x axis, the lead pulling away from 20 m at 1 m/s."""
+    t = np.arange(0, 301) * 0.01
+    lead_x = 24.5 + 11.0 * t
+    cols = {"vehicle.x": 10.0 * t, "vehicle.y": 0 * t, "vehicle.psi": 0 * t, "vehicle.vx": 10.0 + 0 * t,
+            "vehicle.ax": 0 * t, "lead.x": lead_x, "lead.y": 0 * t, "lead.psi": 0 * t, "lead.vx": 11.0 + 0 * t,
+            "planner.gap": lead_x - 10.0 * t - 4.5, "planner.gap_ref": 18.0 + 0 * t,
+            "planner.a_follow": 0.1 + 0 * t, "controller.yc": 0.01 * t, "controller.yL": 0 * t,
+            "controller.psiL": 0 * t, "controller.delta": 0 * t, "controller.vx_ref": 10.0 + 0 * t}
+    links = ["lead.x -> planner.lead_x", "lead.y -> planner.lead_y", "lead.vx -> planner.lead_vx"]
+    return write_run(path, t, cols, {"name": "lane_following"}, connections=links)
+
+
+def test_a_run_with_a_lead_gets_the_following_layout(tmp_path):
+    run = load_run(_following_run(tmp_path / "r"))
+    assert choose_layout(run) == "following"      # before the name rule ("lane" means manoeuvre)
+    fig, layout = build_figure([run])
+    assert layout == "following" and len(fig.axes) == 9
+    axes = _axes_by_title(fig)
+    gap = _lines(axes["gap to the lead (bumper to bumper, along the road)"])
+    np.testing.assert_array_equal(gap["gap"].get_ydata(), run.signal("planner.gap"))
+    np.testing.assert_array_equal(gap["desired gap"].get_ydata(), run.signal("planner.gap_ref"))
+    speeds = _lines(axes["speeds"])
+    np.testing.assert_array_equal(speeds["lead vx"].get_ydata(), run.signal("lead.vx"))
+    assert {"follower vx", "follower vx_ref"} <= set(speeds)
+    lead = _lines(axes["road, follower and lead"])["lead"]
+    np.testing.assert_array_equal(lead.get_xdata(), run.signal("lead.x"))
+    # opening: no time to collision; the time gap is gap / vx
+    headways = _lines(axes["time gap and TTC (capped at 20 s)"])
+    np.testing.assert_allclose(headways["time gap"].get_ydata(), run.signal("planner.gap") / 10.0)
+    assert np.all(np.isnan(headways["time to collision"].get_ydata()))
+    for title in ("follower: lateral error at CG", "follower: lateral error at preview point",
+                  "follower: heading error"):
+        assert title in axes
+    paths = draw_figures(run.run_dir)
+    assert [p.name for p in paths] == ["figure_following.png"]

@@ -64,7 +64,7 @@ def test_misspelt_class_names_the_module_and_its_components() -> None:
     assert str(info.value) == (
         "component 'controller': module 'controllers.baselines' has no class "
         "'StanlyController' (did you mean 'StanleyController'?); its components: "
-        "PurePursuitController, StanleyController")
+        "PurePursuitController, SpeedLoop, StanleyController")
 
 
 def test_a_name_that_is_not_a_component_keeps_its_message() -> None:

@@ -4,7 +4,8 @@ Lag is a first-order lag with its own variable names (u_cmd, y_out, tau, gain),
 mapped to the canonical names u and y. Its exact step solution
 y(t + h) = K u + (y - K u) exp(-h / tau) is recomputed here in Python with the
 same h (t_k - t_{k-1}) and the same operation order, so the results must match
-bit for bit, in FMI 2.0 and FMI 3.0.
+bit for bit, in FMI 2.0 and FMI 3.0. Last, two hosts of one built-in FMU in one
+process (vehicle_following's lead and follower) must not share state.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from cosim.engine.master import Master
 from cosim.results.recorder import read_signals
 from cosim.engine.wiring import Edge
 from tests.helpers.fmus import LAG_SCENARIO as SCENARIO
+from tests.helpers.fmus import built_fmu
 
 LAG_NAMES = {"u": "u_cmd", "y": "y_out"}
 
@@ -151,3 +153,37 @@ def test_input_out_of_range_mid_run_names_tick_and_fmu_message(lag_fmus, version
     assert master.ticks_done == 5
     metrics, errors = master.stop_all()
     assert errors == []
+
+
+def _plant_trace(comps: dict[str, FmuComponent], inputs: dict[str, dict], ticks: int) -> dict[str, list]:
+    """Start the FMU hosts, step them in turn (interleaved), return each one's outputs per tick."""
+    trace = {name: [comp.start(0.0, inputs[name])] for name, comp in comps.items()}
+    for k in range(1, ticks + 1):
+        for name, comp in comps.items():
+            trace[name].append(comp.step(k, 0.01 * k, inputs[name]))
+    for comp in comps.values():
+        comp.stop()
+    return trace
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_two_instances_of_one_builtin_fmu_in_one_process_are_independent(tmp_path, version):
+    """vehicle_following's case: the same .fmu twice in the master's process, other parameters and
+    inputs. Each instance gives, bit for bit, what it gives alone (no state shared through the
+    library: the framework keeps all state per instance, and each host unzips its own copy)."""
+    path, _ = built_fmu(tmp_path, "Vehicle8DOF", version)
+    interface = describe_fmu(path)
+    base = {p.name: 0.0 for p in interface.inputs} | {"mu": 1.0}
+    inputs = {"vehicle": base | {"delta": 0.02, "torque": 300.0},
+              "lead": base | {"delta": -0.01, "torque": -200.0}}
+    params = {"vehicle": {"vx0": 10.0}, "lead": {"vx0": 8.0, "x0": 30.0, "m": 1800.0}}
+
+    def host(name):
+        return FmuComponent(name, path, interface, params[name], 1)
+
+    together = _plant_trace({"vehicle": host("vehicle"), "lead": host("lead")}, inputs, 200)
+    for name in ("vehicle", "lead"):
+        alone = _plant_trace({name: host(name)}, inputs, 200)[name]
+        assert together[name] == alone
+    assert together["vehicle"][-1]["x"] != together["lead"][-1]["x"]
+    assert together["lead"][-1]["x"] > 30.0

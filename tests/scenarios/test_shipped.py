@@ -28,7 +28,8 @@ from tests.helpers.paths import SCENARIOS_DIR
 
 SCENARIOS = SCENARIOS_DIR
 EXPECTED = {"satory_nominal", "satory_disturbed", "lane_keeping", "lane_change",
-            "obstacle_avoidance", "obstacle_blocked", "friction_drop", "iso3888_2", "open_loop", "opendrive_loop"}
+            "obstacle_avoidance", "obstacle_blocked", "friction_drop", "iso3888_2", "open_loop", "opendrive_loop",
+            "vehicle_following"}
 
 
 def _run(tmp_path: Path, name: str, overrides: list[str]):
