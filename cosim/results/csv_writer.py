@@ -38,7 +38,7 @@ SPOOL_SUFFIX = ".f64"
 HEADER_SUFFIX = ".f64.json"
 SPOOL_FORMAT = "cosim-spool-f64"
 POLL_S = 0.2
-CHUNK_BYTES = 1 << 20  # converted per read: bounds the writer's memory
+CHUNK_BYTES = 1 << 16  # converted per read: bounds the writer's memory (flat with duration)
 EXIT_MASTER_GONE = 3
 
 

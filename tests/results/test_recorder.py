@@ -408,3 +408,23 @@ def test_a_writer_that_cannot_start_leaves_the_conversion_to_close(tmp_path, mon
     assert "CSV files rebuilt from the spools" in capsys.readouterr().err
     for name, expected in expected_files(master, snaps).items():
         assert (tmp_path / "run" / name).read_bytes() == expected, name
+
+
+def test_the_writer_converts_a_backlog_in_bounded_pieces(tmp_path):
+    """However far behind the writer process is (a long run on a busy machine), one pump
+    reads at most CHUNK_BYTES of spool: its memory does not grow with the run's duration."""
+    from cosim.results import csv_writer
+
+    columns = ["time", "a", "b", "c"]
+    spool = tmp_path / "t.f64"
+    header = csv_writer.write_header(spool, "t.csv", columns)
+    values = np.arange(4.0 * 20000).reshape(20000, 4) / 7.0
+    spool.write_bytes(values.tobytes())
+    header.csv_path.write_text(header.csv_header_line())
+    tail = csv_writer.SpoolTail(header)
+    pumped = [tail.pump() for _ in range(3)]
+    tail.drain()
+    tail.close()
+    assert max(pumped) * header.row_bytes <= csv_writer.CHUNK_BYTES and pumped[0] > 0
+    assert tail.rows == 20000
+    assert header.csv_path.read_text() == header.csv_header_line() + format_rows(values.tobytes(), 4)
