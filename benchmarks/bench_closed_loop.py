@@ -161,7 +161,8 @@ def build_master(prepared, hosted: dict) -> Master:
     scenario = prepared.scenario
     unsupported = {n: c.interface.unsupported for n, c in hosted.items() if isinstance(c, FmuComponent)}
     edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()}, unsupported)
-    return Master(hosted, edges, scenario.tick, scenario.total_ticks, scenario.start_time)
+    return Master(hosted, edges, scenario.tick, scenario.total_ticks,
+                  scenario.start_time or 0.0)  # the built-in FMUs start at 0
 
 
 def run_once(prepared, timed: bool) -> tuple[float, dict[str, tuple[float, int]]]:

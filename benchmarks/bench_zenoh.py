@@ -41,14 +41,22 @@ def echo(endpoint: str) -> None:
 
 
 class RawPair:
-    """This process and an echo process, joined peer to peer on 127.0.0.1."""
+    """This process and an echo process, joined peer to peer on 127.0.0.1.
+
+    Args:
+        host: the address this process listens on (the echo process connects to it).
+        wrap: a command prefix for the echo process (e.g. `ip netns exec NS`: another namespace).
+    """
+
+    def __init__(self, host: str = "127.0.0.1", wrap: tuple[str, ...] = ()) -> None:
+        self.host, self.wrap = host, tuple(wrap)
 
     def __enter__(self) -> "RawPair":
-        endpoint = config.free_tcp_endpoint()
+        endpoint = config.free_tcp_endpoint(self.host)
         self.session = zenoh.open(config.master_config(endpoint))
         self.pongs = self.session.declare_subscriber(PONG)
         self.ping = self.session.declare_publisher(PING)
-        self.child = subprocess.Popen([sys.executable, __file__, "--echo", endpoint],
+        self.child = subprocess.Popen([*self.wrap, sys.executable, __file__, "--echo", endpoint],
                                       env={**os.environ, "PYTHONPATH": _pythonpath()})
         self.payload = bytes(range(100))
         while True:  # handshake: retry until the echo answers

@@ -9,6 +9,7 @@ part that matters, and returns seconds per unit of work.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
@@ -18,7 +19,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 
@@ -45,6 +46,32 @@ def min_and_median(samples: list[float]) -> tuple[float, float]:
     if not samples:
         raise ValueError("no samples")
     return min(samples), statistics.median(samples)
+
+
+RESULT_PREFIX = "RESULT "
+
+
+def load_average() -> str:
+    """The 1, 5 and 15 minute load averages as "a / b / c", to print next to a figure."""
+    return " / ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def table_row(measure: str, figure: str, target: str, met: bool | None) -> dict[str, object]:
+    """One row of the performance table (`benchmarks/run_all.py`): what, the figure, the target, met?"""
+    return {"measure": measure, "figure": figure, "target": target, "met": met}
+
+
+def emit_results(benchmark: str, figures: Mapping[str, object],
+                 rows: Sequence[Mapping[str, object]] = ()) -> None:
+    """Print the benchmark's figures as one machine-readable line (`benchmarks/run_all.py` reads it).
+
+    Args:
+        benchmark: the benchmark's name (its file name without .py).
+        figures: JSON-able figures (numbers, strings, nested mappings and lists).
+        rows: its rows of the performance table (`table_row`).
+    """
+    print(RESULT_PREFIX + json.dumps({"benchmark": benchmark, "figures": figures, "rows": list(rows)}),
+          flush=True)
 
 
 PROFILERS = ("pyinstrument", "py-spy")

@@ -90,6 +90,9 @@ def read_csv_table(path: Path) -> tuple[list[str], np.ndarray]:
         (column names, float array of shape (rows, columns)).
     """
     try:
+        streamed = _read_csv_streaming(path)
+        if streamed is not None:
+            return streamed
         text = path.read_text()
     except OSError as exc:
         raise AnalysisError(f"{path}: cannot read: {exc.strerror}") from None
@@ -104,6 +107,50 @@ def read_csv_table(path: Path) -> tuple[list[str], np.ndarray]:
         body = body[:-1]  # partial last row of an interrupted run
     body = [b.rstrip("\r") for b in body]
     return header, _parse_rows(path, body, len(header))
+
+
+def _read_csv_streaming(path: Path) -> tuple[list[str], np.ndarray] | None:
+    """`read_csv_table` without the whole text in memory (numpy reads the file itself), or None
+    when the table needs the line-by-line path (a blank line, a field numpy refuses, a bad header).
+
+    The text of a long run is several times the size of its floats: holding it (and its
+    lines) made the analysis's peak memory grow with the run's duration.
+    """
+    with open(path) as handle:
+        header = [h.strip() for h in handle.readline().rstrip("\n").split(",")]
+        if header[0] != "time":
+            return None
+        rows = _complete_rows(path, len(header))
+        if rows is None:
+            return None
+        if rows == 0:
+            return header, np.empty((0, len(header)))
+        try:
+            data = np.loadtxt(handle, dtype=np.float64, delimiter=",", comments=None, ndmin=2,
+                              max_rows=rows)
+        except ValueError:
+            return None
+    return (header, data) if data.shape == (rows, len(header)) else None
+
+
+def _complete_rows(path: Path, width: int, chunk: int = 1 << 20) -> int | None:
+    """Data rows of a CSV whose last line may be partial (dropped unless it has `width` fields),
+    counted in one pass over the bytes; None if some line is blank."""
+    newlines, tail, previous = 0, b"", b""
+    with open(path, "rb") as source:
+        while block := source.read(chunk):
+            if b"\n\n" in block or (previous == b"\n" and block[:1] == b"\n"):
+                return None
+            newlines += block.count(b"\n")
+            cut = block.rfind(b"\n")
+            tail = block[cut + 1:] if cut >= 0 else tail + block
+            previous = block[-1:]
+    if newlines == 0:
+        return 0   # the header alone
+    complete = newlines - 1
+    if tail.strip(b"\r") and tail.count(b",") + 1 == width:
+        complete += 1   # a last row written whole, without its newline
+    return complete
 
 
 @dataclass

@@ -43,7 +43,7 @@ HEADER_SUFFIX = ".f64.json"
 SPOOL_FORMAT = "cosim-spool-f64"
 DATA_OFFSET = 4096  # rows start here; the first 8 bytes count the complete rows
 POLL_S = 0.2
-CHUNK_BYTES = 1 << 20  # converted per read: bounds the writer's memory
+CHUNK_BYTES = 1 << 16  # converted per read: bounds the writer's memory (flat with duration)
 EXIT_MASTER_GONE = 3
 
 

@@ -428,3 +428,23 @@ def test_recover_reads_an_older_spool_without_row_count_and_drops_a_torn_row(tmp
     done = [(p.name, n, cut) for p, n, cut in recover(tmp_path)]
     assert done == [("signals.csv", 2, 5)]
     assert (tmp_path / "signals.csv").read_text() == "time,a\n0.0,1.5\n0.1,-2.25\n"
+
+
+def test_the_writer_converts_a_backlog_in_bounded_pieces(tmp_path):
+    """However far behind the writer process is (a long run on a busy machine), one pump
+    reads at most CHUNK_BYTES of spool: its memory does not grow with the run's duration."""
+    from cosim.results import csv_writer
+
+    columns = ["time", "a", "b", "c"]
+    spool = tmp_path / "t.f64"
+    header = csv_writer.write_header(spool, "t.csv", columns, data_offset=0)  # rows from byte 0
+    values = np.arange(4.0 * 20000).reshape(20000, 4) / 7.0
+    spool.write_bytes(values.tobytes())
+    header.csv_path.write_text(header.csv_header_line())
+    tail = csv_writer.SpoolTail(header)
+    pumped = [tail.pump() for _ in range(3)]
+    tail.drain()
+    tail.close()
+    assert max(pumped) * header.row_bytes <= csv_writer.CHUNK_BYTES and pumped[0] > 0
+    assert tail.rows == 20000
+    assert header.csv_path.read_text() == header.csv_header_line() + format_rows(values.tobytes(), 4)

@@ -1,0 +1,250 @@
+"""The Satory closed loop over Zenoh against its floor: in-process tick + one raw round trip.
+
+satory_nominal (Vehicle8DOF FMU in the master, backstepping controller every
+tick, planner every 10 ticks) for `--seconds` of simulated time, in
+alternating repetitions of four cases measured in the same run:
+
+- `inproc loop`: the master over the in-process hosts (`--transport inproc`),
+  no observers: the in-process tick;
+- `zenoh loop`: the master over the Zenoh hosts (controller and planner in
+  their own processes), no observers: the Zenoh tick;
+- `cosim run zenoh`: `run_scenario(..., transport="zenoh")` as `cosim run`
+  does it (recorder with its writer process, live publisher), tick loop only;
+- `raw round trip`: a 100-byte put/subscribe round trip between this process
+  and an echo process (benchmarks/bench_zenoh.py's pair), median of a block.
+
+Wall-clock time per tick (the Zenoh tick waits on other processes), minimum
+and median over the repeats. The target (DESIGN.md): Zenoh tick <= 1.25 x
+(in-process tick + one raw round trip); the planner's exchange every 10th tick
+makes the real floor 1.1 round trips per tick, printed too. Both transports
+must end in the same signal store, bit for bit (checked: `CHECK FAILED`, exit 1).
+
+Then the same across network namespaces (`--netns auto|on|off`): a namespace
+for the master and one for the component processes, joined by veth pairs on a
+bridge (tests/helpers/netns.py; needs root and iproute2; created and removed
+here), the whole measurement re-run inside the master's namespace. Without
+root it prints why and skips.
+
+    .venv/bin/python benchmarks/bench_closed_loop_zenoh.py [--seconds 20] [--repeats 5] [--netns auto]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+import uuid
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from benchmarks.bench_zenoh import RawPair  # noqa: E402
+from benchmarks.common import emit_results, load_average, min_and_median, table_row  # noqa: E402
+
+SCENARIO = ROOT / "scenarios" / "satory_nominal.yaml"
+TARGET = 1.25
+RAW_BLOCK = 2000
+CASES = ("inproc loop", "zenoh loop", "cosim run zenoh", "raw round trip")
+
+
+def prepared_run(seconds: float):
+    """satory_nominal with `duration=seconds`, prepared (FMUs built, classes imported)."""
+    from cosim.execution.prepare import prepare_run
+    from cosim.scenario.loader import load_scenario
+
+    return prepare_run(load_scenario(SCENARIO, [f"duration={seconds:g}"]))
+
+
+def _master(prepared, python_hosts: dict):
+    """The master over the FMU hosts and `python_hosts`, wired as the scenario says, no observers."""
+    from cosim.engine.master import Master
+    from cosim.engine.wiring import resolve_wiring
+    from cosim.fmu.host import FmuComponent
+
+    hosted = {p.name: FmuComponent(p.name, p.path, p.interface, p.parameters, p.period_ticks)
+              for p in prepared.fmus}
+    hosted.update(python_hosts)
+    hosted = {name: hosted[name] for name in prepared.names}
+    scenario = prepared.scenario
+    unsupported = {n: c.interface.unsupported for n, c in hosted.items() if isinstance(c, FmuComponent)}
+    edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()}, unsupported)
+    return Master(hosted, edges, scenario.tick, scenario.total_ticks,
+                  scenario.start_time or 0.0)  # the built-in FMUs start at 0
+
+
+def _timed_loop(master) -> tuple[float, list[float]]:
+    """Seconds per tick of the master's whole run (wall clock), and its final signal store."""
+    try:
+        master.initialize()
+        start = time.perf_counter()
+        for k in range(1, master.total_ticks + 1):
+            master.step_tick(k)
+        elapsed = time.perf_counter() - start
+        return elapsed / master.total_ticks, list(master.values)
+    finally:
+        master.stop_all()
+
+
+def inproc_loop(prepared) -> tuple[float, list[float]]:
+    """One in-process run: (seconds per tick, final store)."""
+    from cosim.transport.inproc import InprocComponent
+
+    return _timed_loop(_master(prepared, {l.name: InprocComponent(l) for l in prepared.launches}))
+
+
+def zenoh_loop(prepared, hosts_class=None, endpoint: str | None = None) -> tuple[float, list[float]]:
+    """One run with the Python components in their own processes: (seconds per tick, final store)."""
+    from cosim.transport.zenoh import ZenohComponents
+
+    cls = hosts_class or ZenohComponents
+    with cls(prepared.launches, run_id=f"bench{uuid.uuid4().hex[:8]}", endpoint=endpoint) as remote:
+        return _timed_loop(_master(prepared, remote.components))
+
+
+def cosim_run_zenoh(prepared) -> float:
+    """One `run_scenario` over Zenoh (recorder, live publisher): seconds per tick of its loop."""
+    from cosim.execution.run import run_scenario
+
+    with tempfile.TemporaryDirectory(prefix="bench-cl-zenoh-") as tmp:
+        result = run_scenario(prepared.scenario, Path(tmp) / "run", transport="zenoh", progress=False)
+    if result.status != "ok":
+        raise SystemExit(f"bench_closed_loop_zenoh: cosim run failed: {result.error}")
+    return result.wall_time_s / result.ticks
+
+
+def measure(seconds: float, repeats: int, hosts_class=None, endpoint_host: str = "127.0.0.1",
+            echo_wrap: tuple[str, ...] = (), full_run: bool = True) -> dict[str, list[float]]:
+    """The cases, alternated `repeats` times: label -> seconds per tick (or per round trip)."""
+    import numpy as np
+    from cosim.transport.zenoh import config
+
+    prepared = prepared_run(seconds)
+    samples: dict[str, list[float]] = {c: [] for c in CASES if full_run or c != "cosim run zenoh"}
+    with RawPair(endpoint_host, echo_wrap) as pair:
+        pair.measure(200)  # warm-up
+        for _ in range(repeats):
+            tick, inproc_store = inproc_loop(prepared)
+            samples["inproc loop"].append(tick)
+            endpoint = None if hosts_class is None else config.free_tcp_endpoint(endpoint_host)
+            tick, zenoh_store = zenoh_loop(prepared, hosts_class, endpoint)
+            samples["zenoh loop"].append(tick)
+            if zenoh_store != inproc_store:
+                differ = sum(a != b for a, b in zip(zenoh_store, inproc_store))
+                raise SystemExit(f"CHECK FAILED: zenoh and inproc signal stores differ ({differ} values)")
+            if full_run:
+                samples["cosim run zenoh"].append(cosim_run_zenoh(prepared))
+            samples["raw round trip"].append(float(np.median(pair.measure(RAW_BLOCK))))
+    return samples
+
+
+def summarize(samples: dict[str, list[float]], where: str) -> dict[str, float]:
+    """Print the cases and the ratios against the floor; return the figures (us)."""
+    figures: dict[str, float] = {}
+    print(f"{'case':<34}{'min us':>10}{'median us':>11}")
+    for label, values in samples.items():
+        low, mid = min_and_median(values)
+        figures[f"{label} min"], figures[f"{label} median"] = low * 1e6, mid * 1e6
+        print(f"{label:<34}{low * 1e6:>10.1f}{mid * 1e6:>11.1f}")
+    for stat in ("min", "median"):
+        floor = figures[f"inproc loop {stat}"] + figures[f"raw round trip {stat}"]
+        floor_11 = figures[f"inproc loop {stat}"] + 1.1 * figures[f"raw round trip {stat}"]
+        for case in ("zenoh loop", "cosim run zenoh"):
+            if f"{case} {stat}" in figures:
+                ratio = figures[f"{case} {stat}"] / floor
+                figures[f"ratio {case} {stat}"] = ratio
+                print(f"{where}, {stat}s: {case} / (inproc tick + 1 round trip = {floor:.1f} us) = "
+                      f"{ratio:.2f}  (target <= {TARGET}: {'met' if ratio <= TARGET else 'not met'}); "
+                      f"against 1.1 round trips ({floor_11:.1f} us): {figures[f'{case} {stat}'] / floor_11:.2f}")
+    return figures
+
+
+# ------------------------------------------------------------------ network namespaces
+def netns_measure(seconds: float, repeats: int, component_ns: str, master_host: str) -> None:
+    """Inside the master's namespace: the measurement with the component (and echo) processes
+    in `component_ns`; prints the samples as one JSON line."""
+    from cosim.transport.zenoh import ZenohComponents
+    from cosim.transport.zenoh.processes import ChildProcess
+
+    wrap = ("ip", "netns", "exec", component_ns)
+
+    class NamespacedChild(ChildProcess):
+        def _start(self, name, argv, stdin, import_path=()):
+            super()._start(name, [*wrap, *argv], stdin, import_path)
+
+    class NamespacedComponents(ZenohComponents):
+        def _spawn(self, spec):
+            return NamespacedChild(spec, self.run_id, self.endpoint)
+
+    samples = measure(seconds, repeats, NamespacedComponents, master_host, wrap, full_run=False)
+    print("SAMPLES " + json.dumps(samples))
+
+
+def across_namespaces(seconds: float, repeats: int, mode: str) -> dict[str, float] | None:
+    """Create the namespaces, re-run the measurement inside them, remove them; the figures."""
+    from tests.helpers import netns
+
+    why = netns.unavailable()
+    if why:
+        print(f"across network namespaces: skipped ({why})")
+        if mode == "on":
+            raise SystemExit(1)
+        return None
+    with netns.NetLab(["comp"]) as lab:
+        argv = lab.exec(netns.MASTER, [sys.executable, __file__, "--seconds", str(seconds),
+                                       "--repeats", str(repeats), "--netns-child", lab.namespaces["comp"],
+                                       "--master-host", lab.address(netns.MASTER)])
+        done = subprocess.run(argv, capture_output=True, text=True, cwd=ROOT)
+    lines = [l for l in done.stdout.splitlines() if l.startswith("SAMPLES ")]
+    if done.returncode != 0 or not lines:
+        raise SystemExit(f"across network namespaces failed: {done.stderr.strip()[-1500:]}")
+    print(f"across network namespaces (master in one, controller, planner and echo in another, veth + bridge):")
+    return summarize(json.loads(lines[-1][len("SAMPLES "):]), "across namespaces")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=20.0, help="simulated seconds per run")
+    parser.add_argument("--repeats", type=int, default=5, help="rounds of the alternating cases")
+    parser.add_argument("--netns", choices=("auto", "on", "off"), default="auto",
+                        help="also measure across network namespaces (auto: if root and iproute2)")
+    parser.add_argument("--netns-child", metavar="NS", help=argparse.SUPPRESS)
+    parser.add_argument("--master-host", default="127.0.0.1", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if not (args.seconds >= 1 and args.repeats >= 1):
+        parser.error(f"need --seconds >= 1 and --repeats >= 1, got {args.seconds} and {args.repeats}")
+    if args.netns_child:
+        netns_measure(args.seconds, args.repeats, args.netns_child, args.master_host)
+        return
+    before = load_average()
+    samples = measure(args.seconds, args.repeats)
+    print(f"satory_nominal, {args.seconds:g} s simulated ({args.seconds * 100:.0f} ticks), {args.repeats} "
+          f"alternating repeats, wall clock; load average {before} before, {load_average()} after")
+    figures = {"loopback": summarize(samples, "loopback")}
+    if args.netns != "off":
+        netns_figures = across_namespaces(args.seconds, args.repeats, args.netns)
+        if netns_figures:
+            figures["netns"] = netns_figures
+    rows = [row for where, f in figures.items() for row in table_rows(where, f)]
+    emit_results("bench_closed_loop_zenoh", {**figures, "seconds": args.seconds, "repeats": args.repeats,
+                                             "load": f"{before} -> {load_average()}"}, rows)
+
+
+def table_rows(where: str, f: dict[str, float]) -> list[dict]:
+    """The performance-table rows of one setting (loopback or netns), from the medians."""
+    floor = f"inproc {f['inproc loop median']:.0f} + round trip {f['raw round trip median']:.0f} µs"
+    rows = []
+    for case, what in (("zenoh loop", "master loop"), ("cosim run zenoh", "`cosim run`, recorder on")):
+        if f"ratio {case} median" in f:
+            ratio = f[f"ratio {case} median"]
+            rows.append(table_row(f"Satory loop over Zenoh ({what}, {where}) / (in-process tick + 1 raw "
+                                  f"round trip)", f"{f[f'{case} median']:.0f} µs/tick vs {floor}: {ratio:.2f}",
+                                  f"<= {TARGET}", ratio <= TARGET))
+    return rows
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,97 @@
+"""Tests of benchmarks/run_all.py's table writer and of the row readers (no benchmark is run, no timing).
+
+The README's performance section is whatever `readme_block` writes between
+the markers, so its format is checked here: the markers, one Markdown table
+row per figure with the same number of cells as the header, a failed
+benchmark still in the table with its reason, and a replacement that keeps
+the rest of the README byte for byte.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from benchmarks import run_all, run_all_rows
+from benchmarks.common import RESULT_PREFIX, emit_results, table_row
+
+WHEN, MACHINE = "2026-01-01 00:00 UTC", "2 cores (test CPU)"
+
+
+def outcomes() -> list[run_all.Outcome]:
+    ok = run_all.Outcome("bench_a", [table_row("tick | ratio", "1.20", "<= 1.25", True),
+                                     table_row("other", "3.0x", ">= 5x", False)], (1.5, 2.5), 3.0)
+    failed = run_all.Outcome("bench_b", [], (0.5, 0.75), 1.0, "exit status 1: boom")
+    return [ok, failed]
+
+
+def table_rows(block: str) -> list[list[str]]:
+    """The cells of every table line of a block (header and separator included)."""
+    lines = [l for l in block.splitlines() if l.startswith("|")]
+    return [[c.strip() for c in l.strip().strip("|").replace("\\|", "\x00").split("|")] for l in lines]
+
+
+def test_block_has_markers_header_and_one_row_per_figure():
+    block = run_all.readme_block(outcomes(), WHEN, False, MACHINE)
+    lines = block.splitlines()
+    assert lines[0] == run_all.BEGIN and lines[-1] == run_all.END
+    assert WHEN in lines[1] and MACHINE in lines[1] and "quick settings" in lines[1]
+    rows = table_rows(block)
+    assert rows[0] == list(run_all.COLUMNS)
+    assert set(rows[1]) == {"---"}
+    assert len(rows) == 2 + 2 + 1   # header, separator, two figures, the failed benchmark's row
+    assert all(len(r) == len(run_all.COLUMNS) for r in rows)
+    assert rows[2][0] == "`bench_a`" and rows[2][1] == "tick \x00 ratio"   # the pipe was escaped
+    assert rows[2][4] == "met" and rows[3][4] == "**not met**"
+    assert rows[2][5] == "1.5 -> 2.5"
+    assert rows[4][:3] == ["`bench_b`", "(benchmark problem)", "exit status 1: boom"]
+
+
+def test_full_settings_are_named():
+    assert "`python benchmarks/run_all.py --full`" in run_all.readme_block(outcomes(), WHEN, True, MACHINE)
+
+
+def test_replace_block_keeps_the_rest_of_the_readme():
+    before, after = "# Title\n\n## Performance\nintro\n\n", "\n\n## Tests\ntext\n"
+    readme = before + run_all.BEGIN + "\nold table\n" + run_all.END + after
+    block = run_all.readme_block(outcomes(), WHEN, False, MACHINE)
+    replaced = run_all.replace_block(readme, block)
+    assert replaced == before + block + after
+    assert run_all.replace_block(replaced, block) == replaced
+
+
+@pytest.mark.parametrize("text", ["no markers", run_all.END + "\n" + run_all.BEGIN,
+                                  run_all.BEGIN + run_all.END + run_all.BEGIN + run_all.END])
+def test_replace_block_refuses_missing_or_broken_markers(text):
+    with pytest.raises(ValueError, match="expected one"):
+        run_all.replace_block(text, "x")
+
+
+def test_the_readme_has_the_markers():
+    readme = (run_all.ROOT / "README.md").read_text(encoding="utf-8")
+    assert run_all.replace_block(readme, "X").count("X") >= 1
+
+
+def test_rows_come_from_the_result_line(capsys):
+    emit_results("bench_x", {"a": 1.0}, [table_row("m", "f", "t", None)])
+    line = capsys.readouterr().out.strip()
+    assert line.startswith(RESULT_PREFIX)
+    assert json.loads(line[len(RESULT_PREFIX):])["rows"] == [
+        {"measure": "m", "figure": "f", "target": "t", "met": None}]
+
+
+ZENOH_OUTPUT = """(a) raw put/sub round trip, 100 B  median     79.7 us   p99    742.5 us   (n=1000)
+(b) lockstep tick, 1 component     median     97.6 us   p99    360.4 us   (n=1000)
+ratio tick / raw (medians): 1.23  (target <= 1.25)
+"""
+
+
+def test_an_output_reader_takes_the_printed_figures():
+    (row,) = run_all_rows.zenoh(ZENOH_OUTPUT)
+    assert row["figure"] == "97.6 vs 79.7 µs: 1.23" and row["met"] is True
+
+
+def test_an_output_reader_finds_nothing_in_a_changed_format():
+    assert run_all_rows.zenoh("ratio: 1.2\n") == []
+    assert run_all_rows.closed_loop("") == [] and run_all_rows.master_overhead("") == []
