@@ -31,10 +31,11 @@ def test_version(capsys):
 
 
 def test_shell_completion_script():
-    # a process of its own, without typer's test switches that other tests' CliRunner sets
-    env = {k: v for k, v in os.environ.items() if not k.startswith("_TYPER")}
+    # A process of its own, with the shell named on the command line: typer otherwise
+    # guesses the shell from the parent process (here pytest, not a shell).
+    env = {**os.environ, "SHELL": "/bin/bash", "_TYPER_COMPLETE_TEST_DISABLE_SHELL_DETECTION": "1"}
     done = subprocess.run([sys.executable, "-m", "cosim.cli.app", "--show-completion", "bash"],
-                          capture_output=True, text=True, timeout=60, env={**env, "SHELL": "/bin/bash"})
+                          capture_output=True, text=True, timeout=60, env=env)
     assert done.returncode == 0, done.stderr
     assert "complete" in done.stdout and "cosim" in done.stdout
 
