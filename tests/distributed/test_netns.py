@@ -22,6 +22,7 @@ import pytest
 
 from cosim.cli.app import main
 from cosim.results.recorder import read_signals
+from tests.helpers.credentials import auth_deploy_file, shared_credentials_file
 from tests.helpers import netns
 from tests.helpers.paths import REPO_ROOT
 
@@ -151,7 +152,8 @@ def hosts(lab, _workers):
         if name in _workers and _workers[name].proc.poll() is not None:
             _workers.pop(name).close()
         if name not in _workers:
-            _workers[name] = Host(lab, host, name, "--listen", f"tcp/{lab.address(host)}:{PORT}")
+            _workers[name] = Host(lab, host, name, "--listen", f"tcp/{lab.address(host)}:{PORT}",
+                                  "--deploy", str(AUTH_DEPLOY()))
     return _workers
 
 
@@ -162,12 +164,18 @@ def expected_short(tmp_path_factory) -> bytes:
     return local_run(write_scenario(folder), folder / "run")
 
 
+def AUTH_DEPLOY() -> Path:  # noqa: N802 - a constant, made on first use
+    """The deployment file with the workers' shared credential (masters and workers)."""
+    return auth_deploy_file(shared_credentials_file().parent)
+
+
 def master_argv(lab: netns.NetLab, scenario: Path, out: Path, *extra: str) -> list[str]:
     argv = [sys.executable, "-m", "cosim.cli.app", "run", str(scenario), "--out", str(out),
             "--no-figures", "--deadline", str(DEADLINE_S),
             "--listen", f"tcp/{lab.address('master')}:0",
             "--connect", f"tcp/{lab.address('a')}:{PORT}",
-            "--connect", f"tcp/{lab.address('b')}:{PORT}", *extra]
+            "--connect", f"tcp/{lab.address('b')}:{PORT}", "--deploy", str(AUTH_DEPLOY()),
+            *extra]
     return lab.exec("master", argv)
 
 
@@ -215,7 +223,8 @@ def test_three_hosts_bit_identical_to_local_run(lab, hosts, tmp_path, expected_s
     assert manifest["hosts"]["mixer"].startswith("wa@") and manifest["hosts"]["echo"].startswith("wb@")
     listing = subprocess.run(lab.exec("master", [
         sys.executable, "-m", "cosim.cli.app", "workers", "--timeout", "1",
-        "--connect", f"tcp/{lab.address('a')}:{PORT}", "--connect", f"tcp/{lab.address('b')}:{PORT}"]),
+        "--connect", f"tcp/{lab.address('a')}:{PORT}", "--connect", f"tcp/{lab.address('b')}:{PORT}",
+        "--deploy", str(AUTH_DEPLOY())]),
         cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=60)
     assert listing.returncode == 0 and "2 worker(s)" in listing.stdout
     assert "wa" in listing.stdout and "wb" in listing.stdout
