@@ -28,7 +28,7 @@ from cosim.transport.zenoh.auth import Credential
 from cosim.transport.zenoh.wire import HEADER, Kind
 
 NAMES_QUERY_TIMEOUT_S = 2.0
-CONNECT_TIMEOUT_S = 3.0
+CONNECT_TIMEOUT_S = 5.0
 WATCH_QUEUE = 4096  # samples kept for a slow watcher; older ones are dropped
 
 
