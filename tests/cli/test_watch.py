@@ -125,21 +125,21 @@ def test_watch_with_deploy_follows_a_tls_run_and_without_it_says_it_cannot_conne
     scenario.write_text(GOOD)
     out = tmp_path / "run"
     run = subprocess.Popen([sys.executable, "-m", "cosim.cli.app", "run", str(scenario), "--out",
-                            str(out), "--no-figures", "--set", "duration=6.0", "--realtime", "1",
+                            str(out), "--no-figures", "--set", "duration=20.0", "--realtime", "1",
                             "--deploy", str(tmp_path / "master.yaml")],
                            cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, text=True)
     try:
         assert run.stdout.readline() == f"run folder: {out}\n"
         endpoint = run.stdout.readline().split()[4]
         assert endpoint.startswith("tls/127.0.0.1:")
-        refused = subprocess.run([sys.executable, "-m", "cosim.cli.app", "watch", str(out)],
-                                 cwd=tmp_path, env=_env(), capture_output=True, text=True,
-                                 timeout=60)
         watcher = subprocess.run(
             [sys.executable, "-m", "cosim.cli.app", "watch", str(out), "--deploy",
              str(tmp_path / "watch.yaml"), "--signals", "gain.y", "--every", "10", "--count", "3"],
             cwd=tmp_path, env=_env(), capture_output=True, text=True, timeout=60)
-        assert run.wait(timeout=60) == 0
+        refused = subprocess.run([sys.executable, "-m", "cosim.cli.app", "watch", str(out)],
+                                 cwd=tmp_path, env=_env(), capture_output=True, text=True,
+                                 timeout=60)
+        assert run.wait(timeout=90) == 0
     finally:
         run.kill()
     assert refused.returncode == 2

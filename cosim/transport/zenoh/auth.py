@@ -18,9 +18,8 @@ it loads zenoh).
 
 from __future__ import annotations
 
+import base64
 import os
-import secrets
-import shutil
 import stat
 import tempfile
 from collections.abc import Iterable, Sequence
@@ -67,8 +66,10 @@ class Credential:
 
 
 def new_credential(run_id: str) -> Credential:
-    """A fresh random credential for run `run_id` (256 bits of password)."""
-    return Credential(f"run-{run_id}", secrets.token_urlsafe(32))
+    """A fresh random credential for run `run_id` (256 bits of password; os.urandom
+    rather than `secrets`, whose imports cost the start-up some milliseconds)."""
+    password = base64.urlsafe_b64encode(os.urandom(32)).rstrip(b"=").decode()
+    return Credential(f"run-{run_id}", password)
 
 
 def write_private(path: Path, text: str) -> None:
@@ -132,6 +133,8 @@ class Dictionary:
 
     def close(self) -> None:
         """Remove the file and its folder."""
+        import shutil
+
         shutil.rmtree(self._folder, ignore_errors=True)
 
 
