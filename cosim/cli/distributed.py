@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import faulthandler
 import signal
+import sys
 from pathlib import Path
 from typing import Any, Optional
 
@@ -43,7 +44,14 @@ def worker(
                                          "cosim.sources), repeatable"),
     allow_fmu: bool = typer.Option(False, "--allow-fmu",
                                    help="run plant FMUs that masters send (native code)"),
-    deploy: Optional[Path] = typer.Option(None, "--deploy", help="deployment settings YAML"),
+    deploy: Optional[Path] = typer.Option(None, "--deploy", help="deployment settings YAML "
+                                          "(TLS client certificates or an auth: credential)"),
+    insecure: bool = typer.Option(False, "--insecure",
+                                  help="start components for masters it cannot authenticate"),
+    max_components: int = typer.Option(16, "--max-components",
+                                       help="most component processes hosted at once"),
+    orphan_timeout: float = typer.Option(30.0, "--orphan-timeout",
+                                         help="seconds a component waits for its run's master"),
 ) -> None:
     """Serve as a worker: start components on this host for masters that ask."""
     from cosim.distributed import protocol as worker_protocol
@@ -51,9 +59,12 @@ def worker(
 
     try:
         settings = load_settings(deploy, listen, connect)
-        agent = Worker(name, settings, allow or worker_protocol.DEFAULT_ALLOW, allow_fmu)
+        agent = Worker(name, settings, allow or worker_protocol.DEFAULT_ALLOW, allow_fmu,
+                       insecure=insecure, max_components=max_components,
+                       orphan_timeout_s=orphan_timeout)
     except (UserError, ValueError) as error:
         raise user_error_exit(UserError(str(error))) from None
+    _print_security(agent)
     # `kill -USR1 <pid>` prints where a stuck worker is (a long-running service must be debuggable).
     faulthandler.register(signal.SIGUSR1, all_threads=True)
     print(f"worker {agent.name!r} on {agent.host}: listen {settings.listen or '-'}, "
@@ -63,6 +74,20 @@ def worker(
         agent.serve(on_ready=lambda: print(f"worker {agent.name!r} ready", flush=True))
     except UserError as error:
         raise user_error_exit(error) from None
+
+
+def _print_security(agent: Any) -> None:
+    """Say, at start, how the worker decides whom it serves."""
+    if agent.authenticated:
+        return
+    if agent.insecure:
+        print(f"warning: worker {agent.name!r} runs with --insecure: any process that can "
+              f"reach its endpoints can start components on this host", file=sys.stderr,
+              flush=True)
+    else:
+        print(f"worker {agent.name!r}: no credential and no TLS client certificates in "
+              f"--deploy, so it refuses every start request (see docs/security.md)",
+              file=sys.stderr, flush=True)
 
 
 def workers(

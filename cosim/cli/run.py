@@ -255,8 +255,8 @@ def _finish_run(result: Any, figures: bool, mcap: bool = False) -> None:
 
 def _print_live(run_id: str, endpoint: str) -> None:
     """Tell the user how to watch the run live (called before tick 0)."""
-    print(f"run id: {run_id}  live: {endpoint}  (watch: cosim watch {run_id} "
-          f"--connect {endpoint})", flush=True)
+    print(f"run id: {run_id}  live: {endpoint}  (watch: cosim watch RUN_FOLDER, "
+          f"which holds the run's credential)", flush=True)
 
 
 @contextlib.contextmanager

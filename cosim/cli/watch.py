@@ -1,11 +1,14 @@
 """`cosim watch`: print a running simulation's signals live, from another process.
 
-    cosim watch RUN_ID --connect tcp/127.0.0.1:PORT [--signals 'vehicle.*'] [--every 10]
-    cosim watch runs/lane_change-20261122T003000Z     # run id and endpoint from its manifest
-    cosim watch '*' --connect ENDPOINT                # every run reachable there
+    cosim watch runs/lane_change-20261122T003000Z     # run id, endpoint, credential from it
+    cosim watch RUN_ID --connect tcp/127.0.0.1:PORT --credential FOLDER/live.credential
+    cosim watch RUN_ID --connect tls/10.0.0.1:7447 --deploy master.yaml   # a TLS run
+    cosim watch '*' --connect ENDPOINT --deploy FILE  # every run reachable there
 
 `cosim run` prints its run id and live endpoint before tick 0 and writes them
-into manifest.json under "live". The watcher prints one compact line per
+into manifest.json under "live"; the run's credential is in the owner-only
+file `live.credential` of the run folder (every session of a run
+authenticates: without it nothing can be seen). The watcher prints one compact line per
 `--every` ticks, e.g.
 
     tick 1200  t=12  vehicle.x=115.2  vehicle.y=3.41  controller.delta=0.0123
@@ -24,7 +27,7 @@ import sys
 import time
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import typer
 
@@ -128,8 +131,31 @@ def check_reachable(endpoint: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None
                         f"or the endpoint is not the one `cosim run` printed") from None
 
 
+def session_for(target: str, endpoint: str, deploy: Path | None,
+                credential: Path | None) -> tuple[Any, Any]:
+    """(credential, Zenoh config) of the watching session: a deployment file's
+    session (TLS, shared credential), else `--credential`, else the run folder's
+    `live.credential`; (None, None) when none of them is there.
+
+    Args:
+        target: the RUN argument (a run folder, a run id or "*").
+        endpoint: the master's live endpoint.
+        deploy: `--deploy FILE`, or None.
+        credential: `--credential FILE`, or None.
+    """
+    from cosim.transport.zenoh.auth import LIVE_CREDENTIAL_FILE, read_credential_file
+
+    if deploy is not None:
+        from cosim.distributed.deploy import load_deploy, zenoh_config
+
+        return None, zenoh_config(load_deploy(deploy), "peer", [], [endpoint])
+    if credential is None and (Path(target) / LIVE_CREDENTIAL_FILE).is_file():
+        credential = Path(target) / LIVE_CREDENTIAL_FILE
+    return (read_credential_file(credential) if credential is not None else None), None
+
+
 def watch_lines(run_id: str, endpoint: str, patterns: Sequence[str], every: int,
-                count: int) -> Iterable[str]:
+                count: int, session: tuple[Any, Any] = (None, None)) -> Iterable[str]:
     """The lines `cosim watch` prints, until the run ends or `count` lines (0: no limit).
 
     Args:
@@ -138,6 +164,7 @@ def watch_lines(run_id: str, endpoint: str, patterns: Sequence[str], every: int,
         patterns: --signals globs.
         every: print one tick in `every` (ticks whose number is a multiple of it).
         count: stop after this many lines; 0 for no limit.
+        session: (credential, Zenoh config) from `session_for`.
     Raises:
         UserError when no signal matches the patterns.
     """
@@ -145,7 +172,7 @@ def watch_lines(run_id: str, endpoint: str, patterns: Sequence[str], every: int,
 
     selected: dict[tuple[str, int], list[str]] = {}  # (run, number of names) -> names
     printed = 0
-    for run, tick, t, values in watch_runs(run_id, endpoint):
+    for run, tick, t, values in watch_runs(run_id, endpoint, *session):
         if tick % every:
             continue
         key = (run, len(values))
@@ -168,6 +195,11 @@ def watch(
     signals: list[str] = typer.Option([], "--signals", help="glob of signal names, repeatable"),
     every: int = typer.Option(10, "--every", help="print one line every N ticks"),
     count: int = typer.Option(0, "--count", help="stop after N lines (0: until the run ends)"),
+    deploy: Optional[Path] = typer.Option(None, "--deploy",
+                                          help="deployment settings YAML (TLS, shared credential)"),
+    credential: Optional[Path] = typer.Option(
+        None, "--credential", help="the run's credential file (default: the run folder's "
+                                   "live.credential)"),
 ) -> None:
     """Print a running simulation's signals live (one line per N ticks)."""
     try:
@@ -176,17 +208,18 @@ def watch(
         if connect is not None:
             check_endpoint(connect, "--connect")
         run_id, endpoint = resolve_target(target, connect, MANIFEST_WAIT_S)
+        session = session_for(target, endpoint, deploy, credential)
         check_reachable(endpoint)
         what = "every run" if run_id == "*" else f"run {run_id}"
         print(f"watching {what} at {endpoint} (Ctrl-C to stop)", file=sys.stderr,
               flush=True)
         printed = 0
-        for line in watch_lines(run_id, endpoint, signals, every, count):
+        for line in watch_lines(run_id, endpoint, signals, every, count, session):
             print(line, flush=True)
             printed += 1
         if not count or printed < count:
             print(f"run {run_id} ended", file=sys.stderr, flush=True)
-    except (UserError, TimeoutError) as error:
+    except (UserError, TimeoutError, ConnectionError) as error:
         raise user_error_exit(UserError(str(error))) from None
     except KeyboardInterrupt:
         raise typer.Exit(0) from None

@@ -20,6 +20,7 @@ which the master maps to the YAML line as for a local process.
 from __future__ import annotations
 
 import json
+import secrets
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -27,11 +28,13 @@ from typing import Any
 import zenoh
 
 from cosim.distributed import protocol as proto
-from cosim.distributed.deploy import DeploySettings, session_mode, zenoh_config, zenoh_settings
+from cosim.distributed.deploy import (DeploySettings, session_mode, to_zenoh_config, zenoh_config,
+                                      zenoh_settings)
 from cosim.errors import ComponentFailure, UserError
 from cosim.fmu.remote import FMU_HOST_CLASS, fmu_payload
 from cosim.transport.inproc import PythonComponentLaunch
 from cosim.transport.zenoh import config
+from cosim.transport.zenoh.auth import Credential, run_acl
 from cosim.transport.zenoh.host import ZenohComponents
 from cosim.transport.zenoh.processes import ChildProcess
 
@@ -121,7 +124,8 @@ class _RemotePopen:
 
     def terminate(self) -> None:
         if self._stop_reply is None and not self._child.hosted.worker_gone(self._child.worker):
-            request = {"op": "stop", "run_id": self._child.run_id, "component": self._child.name}
+            request = {"op": "stop", "run_id": self._child.run_id, "component": self._child.name,
+                       "run_token": self._child.hosted.run_token}
             self._stop_reply = self._child.hosted.session.get(
                 proto.worker_key(self._child.worker), payload=proto.encode(request),
                 timeout=STOP_TIMEOUT_S)
@@ -157,7 +161,8 @@ class WorkerChild:
         self.hosted, self.name, self.worker = hosted, spec.name, worker
         self.run_id = hosted.run_id
         self.worker_host = str(info.get("host", "?"))
-        request = {"op": "start", "run_id": hosted.run_id, "component": spec.name,
+        request = {"op": "start", "run_id": hosted.run_id, "run_token": hosted.run_token,
+                   "component": spec.name,
                    "class_path": spec.class_path, "parameters": _jsonable(spec),
                    "period_ticks": int(spec.period_ticks), "connect": [hosted.endpoint]}
         if spec.class_path == FMU_HOST_CLASS:
@@ -192,7 +197,7 @@ class WorkerChild:
         if self.hosted.worker_gone(self.worker):
             return (f"{self.where} became unreachable (host down, frozen or cut off): the "
                     f"liveliness tokens of the component process and of the worker were lost")
-        return (f"process vanished from the network (liveliness token lost) on "
+        return (f"process stopped or not responding (liveliness token lost) on "
                 f"{self.where}; the worker is still up")
 
     def log_tail(self) -> str:
@@ -246,6 +251,8 @@ class DistributedComponents(ZenohComponents):
                             f"of this host they can reach, not a wildcard one")
         super().__init__(specs, run_id, deadline_s, endpoint, connect=self.settings.connect,
                          startup_timeout_s=startup_timeout_s)
+        self._shared = self.settings.credential()  # None: the deployment has no `auth`
+        self.run_token = secrets.token_urlsafe(24)  # proves a stop request is this run's
         self.workers: dict[str, dict[str, Any]] = {}
         self._notices: dict[str, dict[str, Any]] = {}
         self._gone: set[str] = set()
@@ -272,9 +279,28 @@ class DistributedComponents(ZenohComponents):
                 components[spec.name].direct_feedthrough = False  # as a local FmuComponent
         return components
 
+    @property
+    def live_credential(self) -> Credential | None:
+        """The run's credential when this master checks credentials (a deployment
+        with `auth`); None with TLS alone or a plain deployment (watch with --deploy)."""
+        return self.credential if self._shared is not None else None
+
+    def _accepted(self) -> list[Credential]:
+        return [self.credential, *([self._shared] if self._shared else [])]
+
     def _session_config(self, endpoint: str) -> zenoh.Config:
+        """The deployment's session (TLS, shared credential) accepting the run's own
+        credential too, restricted to the run's and the workers' keys unless the
+        deployment has its own ACL."""
         listen = [endpoint, *self.settings.listen[1:]]
-        return zenoh_config(self.settings, "peer", listen, self.settings.connect)
+        document = zenoh_settings(self.settings, "peer", listen, self.settings.connect)
+        if self._shared is not None:
+            assert self._dictionary is not None
+            document["transport"]["auth"] = {
+                "usrpwd": self._shared.usrpwd(str(self._dictionary.path))}
+        if self.settings.access_control is None:
+            document["access_control"] = run_acl(self.run_id, [proto.worker_key("**")])
+        return to_zenoh_config(document)
 
     def _open_session(self) -> None:
         super()._open_session()
@@ -302,10 +328,10 @@ class DistributedComponents(ZenohComponents):
         worker = self.placement.get(spec.name)
         if worker is not None:
             return WorkerChild(self, spec, worker, self.workers[worker])
-        if self.settings.tls is None and self.settings.access_control is None:
-            return super()._spawn(spec)
         conf = zenoh_settings(self.settings, "peer", [], [self.endpoint])
-        return ChildProcess(spec, self.run_id, self.endpoint, ["--zenoh-config", json.dumps(conf)])
+        if self._shared is not None:  # the master checks credentials: present the run's
+            conf["transport"]["auth"] = {"usrpwd": self.credential.usrpwd()}
+        return ChildProcess(spec, self.run_id, self.endpoint, session_config=conf)
 
     def exit_notice(self, component: str) -> dict[str, Any] | None:
         """The exit notice a worker sent for `component`, if any."""

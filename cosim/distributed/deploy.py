@@ -11,6 +11,8 @@ own YAML file (`--deploy FILE`), never in the scenario:
       private_key: node-key.pem
       mutual: true                       # peers must present a certificate too
       verify_name: false                 # check the endpoint's name against the cert
+    auth:                                # a shared credential (Zenoh user-password)
+      credentials_file: cosim.credential # one line "user:password", owner-only (chmod 600)
     access_control:                      # Zenoh's own ACL block, passed as is
       enabled: true
       default_permission: deny
@@ -21,6 +23,8 @@ own YAML file (`--deploy FILE`), never in the scenario:
     lease_s: 2.0                         # a silent link (cut cable) is dropped after this
     open_timeout_s: 1.0                  # longest attempt to open a link (bounds close too)
 
+A node with `auth` presents the shared credential and accepts the peers that
+present it (the credentials file is also its Zenoh dictionary file).
 `zenoh_config` turns settings plus a mode and endpoints into a `zenoh.Config`;
 every session of the distributed platform (master, worker, component
 process, router, `cosim workers`) is built through it, so TLS and ACL apply
@@ -38,6 +42,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from cosim.errors import UserError
 from cosim.scenario.yaml_lines import read_yaml_file
+from cosim.transport.zenoh.auth import Credential, read_credential_file
 
 _PROTOCOLS = ("tcp", "tls", "udp", "quic", "unixsock-stream")
 
@@ -53,6 +58,13 @@ class TlsSettings(BaseModel):
     verify_name: bool = False
 
 
+class AuthSettings(BaseModel):
+    """A credential shared by the hosts of a deployment (path resolved against the file)."""
+
+    model_config = ConfigDict(extra="forbid")
+    credentials_file: str
+
+
 class DeploySettings(BaseModel):
     """The whole deployment file (see the module docstring)."""
 
@@ -60,10 +72,20 @@ class DeploySettings(BaseModel):
     listen: list[str] = Field(default_factory=list)
     connect: list[str] = Field(default_factory=list)
     tls: Optional[TlsSettings] = None
+    auth: Optional[AuthSettings] = None
     access_control: Optional[dict[str, Any]] = None
     discovery_timeout_s: float = Field(3.0, gt=0)
     lease_s: float = Field(2.0, ge=0.5)
     open_timeout_s: float = Field(1.0, gt=0)
+
+    def credential(self) -> Credential | None:
+        """The shared credential of `auth` (read now; UserError when the file is unsafe)."""
+        return read_credential_file(self.auth.credentials_file) if self.auth else None
+
+    def authenticates_peers(self) -> bool:
+        """Whether a session with these settings accepts only peers it can authenticate
+        (a shared credential, or TLS that asks for client certificates)."""
+        return self.auth is not None or (self.tls is not None and self.tls.mutual)
 
     @field_validator("listen", "connect")
     @classmethod
@@ -111,6 +133,11 @@ def load_deploy(path: str | Path) -> DeploySettings:
         raise UserError("\n".join(lines)) from None
     if settings.tls is not None:
         settings.tls = _resolve_tls(settings.tls, path)
+    if settings.auth is not None:
+        file = Path(settings.auth.credentials_file)
+        file = file if file.is_absolute() else path.parent / file
+        settings.auth = AuthSettings(credentials_file=str(file.resolve()))
+        settings.credential()  # a missing or unsafe file is reported now, naming it
     return settings
 
 
@@ -189,6 +216,11 @@ def zenoh_settings(settings: DeploySettings | None, mode: str, listen: list[str]
             "listen_certificate": tls.certificate, "listen_private_key": tls.private_key,
             "connect_certificate": tls.certificate, "connect_private_key": tls.private_key,
             "enable_mtls": tls.mutual, "verify_name_on_connect": tls.verify_name}
+    if settings is not None and settings.auth is not None:
+        shared = settings.credential()
+        assert shared is not None
+        document["transport"]["auth"] = {
+            "usrpwd": shared.usrpwd(settings.auth.credentials_file)}
     if settings is not None and settings.access_control is not None:
         document["access_control"] = settings.access_control
     return document
@@ -201,9 +233,17 @@ def zenoh_config(settings: DeploySettings | None, mode: str, listen: list[str],
     Raises:
         UserError when Zenoh rejects the configuration (bad ACL block, say).
     """
+    return to_zenoh_config(zenoh_settings(settings, mode, listen, connect))
+
+
+def to_zenoh_config(document: dict[str, Any]) -> Any:
+    """A `zenoh.Config` from a configuration document (`zenoh_settings`, maybe amended).
+
+    Raises:
+        UserError when Zenoh rejects it.
+    """
     import zenoh
 
-    document = zenoh_settings(settings, mode, listen, connect)
     try:
         return zenoh.Config.from_json5(json.dumps(document))
     except zenoh.ZError as exc:

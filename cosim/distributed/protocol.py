@@ -6,13 +6,16 @@ Keys (no run id: workers outlive runs):
 
 A request is a JSON object with "op":
     {"op": "info"}
-        -> {"ok": true, "name", "host", "pid", "allow": [...], "running": n}
-    {"op": "start", "run_id", "component", "class_path", "parameters",
+        -> {"ok": true, "name", "host", "pid", "allow": [...], "running": n,
+            "max_components": n, "authenticated": bool}
+    {"op": "start", "run_id", "run_token", "component", "class_path", "parameters",
      "period_ticks", "connect": [master endpoints], "fmu": {"sha256", "data"}}
         -> {"ok": true, "pid"} or {"ok": false, "error": "..."}
         ("fmu", base64 bytes of the file, only for cosim.fmu.remote:RemoteFmu)
-    {"op": "stop", "run_id", "component"}
+    {"op": "stop", "run_id", "run_token", "component"}
         -> {"ok": true, "exit_code"}
+        ("run_token": a secret of the run, the same in its start and stop requests:
+        a stop with another token is refused)
 A refused or failed request always answers {"ok": false, "error"} naming the worker.
 """
 

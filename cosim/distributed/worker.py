@@ -13,12 +13,21 @@ worker only watches: when a child ends it puts an exit notice (exit code and
 last output) on the run's key, so the master learns why. Only classes from
 allowed module prefixes are started; the worker itself never imports what a
 request names. A run's failure never ends the worker.
+
+Security: a worker starts components only for masters it can authenticate
+(a shared credential or TLS client certificates in its deployment settings:
+nobody else can open a link to it); without either it refuses every start
+unless it runs `insecure`. A child whose run's master does not show up within
+`orphan_timeout_s`, or whose master disappears, is stopped and reaped. A stop
+request must carry the run token of the start request (only the run that
+started a component stops it), and at most `max_components` run at once.
 """
 
 from __future__ import annotations
 
-import json
+import hmac
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -26,6 +35,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -38,12 +48,24 @@ from cosim.errors import UserError
 from cosim.fmu.remote import FMU_HOST_CLASS, store_fmu
 from cosim.transport.inproc import PythonComponentLaunch
 from cosim.distributed.service import stop_event_with_signals
-from cosim.transport.zenoh.config import check_key_chunk
+from cosim.transport.zenoh.config import check_key_chunk, master_alive_key
 from cosim.transport.zenoh.processes import ChildProcess
 
 POLL_S = 0.005
 REAP_POLL_S = 0.05
 STOP_GRACE_S = 1.5
+MAX_COMPONENTS = 16
+ORPHAN_TIMEOUT_S = 30.0
+
+
+@dataclass
+class _Hosted:
+    """One component process and what the worker knows of its run."""
+
+    child: ChildProcess
+    run_id: str
+    token: str         # the run token of its start request: a stop must repeat it
+    started: float     # time.monotonic() of its start
 
 
 class Worker:
@@ -54,19 +76,35 @@ class Worker:
         settings: endpoints, TLS and ACL of its session.
         allow: module prefixes of the component classes it may start.
         allow_fmu: whether masters may send FMUs (native code) to run here.
+        insecure: start components even though nothing authenticates the masters.
+        max_components: most component processes hosted at once.
+        orphan_timeout_s: a child whose master has not appeared by then is ended.
     """
 
     def __init__(self, name: str, settings: DeploySettings | None = None,
-                 allow: Sequence[str] = proto.DEFAULT_ALLOW, allow_fmu: bool = False) -> None:
+                 allow: Sequence[str] = proto.DEFAULT_ALLOW, allow_fmu: bool = False, *,
+                 insecure: bool = False, max_components: int = MAX_COMPONENTS,
+                 orphan_timeout_s: float = ORPHAN_TIMEOUT_S) -> None:
         self.name = check_key_chunk(name, "worker name")
         self.settings = settings or DeploySettings()
         self.allow = tuple(allow) or proto.DEFAULT_ALLOW
         self.host = socket.gethostname()
-        self._children: dict[tuple[str, str], ChildProcess] = {}
+        self._children: dict[tuple[str, str], _Hosted] = {}
+        self._masters: dict[str, Any] = {}        # run id -> liveliness subscriber of its master
+        self._master_seen: dict[str, bool] = {}   # run id -> True alive, False gone
+        self.insecure = bool(insecure)
+        self.authenticated = self.settings.authenticates_peers()
+        if max_components < 1 or not orphan_timeout_s > 0:
+            raise UserError(f"worker {name!r}: --max-components must be >= 1 and "
+                            f"--orphan-timeout > 0, got {max_components} and {orphan_timeout_s}")
+        self.max_components = int(max_components)
+        self.orphan_timeout_s = float(orphan_timeout_s)
         self._lock = threading.Lock()
         self._session: Any = None
         self.allow_fmu = bool(allow_fmu)
-        self._fmu_cache = Path(tempfile.gettempdir()) / f"cosim-worker-{self.name}-fmus"
+        # private (0700) and this process's own: a shared folder in /tmp would let another
+        # local user plant an FMU under the name of a hash, which would then be run
+        self._fmu_cache = Path(tempfile.mkdtemp(prefix=f"cosim-worker-{self.name}-fmus-"))
         self.mode = session_mode(self.settings.listen, self.settings.connect)
 
     # ------------------------------------------------------------------ serving
@@ -101,6 +139,7 @@ class Worker:
                 stop_event.set()
                 reaper.join()
                 self._stop_all()
+                shutil.rmtree(self._fmu_cache, ignore_errors=True)
                 queryable.undeclare()
                 token.undeclare()
 
@@ -144,11 +183,19 @@ class Worker:
         with self._lock:
             running = len(self._children)
         return {"ok": True, "name": self.name, "host": self.host, "pid": os.getpid(),
-                "allow": list(self.allow), "allow_fmu": self.allow_fmu, "running": running, "listen": self.settings.listen}
+                "allow": list(self.allow), "allow_fmu": self.allow_fmu, "running": running,
+                "listen": self.settings.listen, "max_components": self.max_components,
+                "authenticated": self.authenticated}
 
     def _start(self, request: dict[str, Any]) -> int:
         run_id = check_key_chunk(request["run_id"], "run_id")
         component = check_key_chunk(request["component"], "component name")
+        if not self.authenticated and not self.insecure:
+            raise UserError(f"worker {self.name!r} on host {self.host!r} refuses component "
+                            f"{component!r}: it cannot authenticate masters (no auth: "
+                            f"credential and no TLS client certificates in its --deploy "
+                            f"file); give it one, or start it with --insecure on a trusted "
+                            f"network")
         class_path = str(request["class_path"])
         parameters = dict(request.get("parameters", {}))
         if class_path == FMU_HOST_CLASS:
@@ -161,6 +208,9 @@ class Worker:
         connect = [check_endpoint(str(e)) for e in request["connect"]]
         if not connect:
             raise ValueError("start request without a master endpoint")
+        token = str(request.get("run_token") or "")
+        if not token:
+            raise ValueError("start request without a run_token")
         launch = PythonComponentLaunch(component, class_path, parameters,
                                        int(request.get("period_ticks", 1)))
         # behind a router (client mode) the component falls back to the router when the
@@ -170,10 +220,21 @@ class Worker:
         with self._lock:
             if (run_id, component) in self._children:
                 raise ValueError(f"component {component!r} of run {run_id!r} already runs here")
-            child = ChildProcess(launch, run_id, connect[0],
-                                 ["--zenoh-config", json.dumps(session_conf)])
-            self._children[(run_id, component)] = child
+            if len(self._children) >= self.max_components:
+                raise UserError(f"worker {self.name!r} on host {self.host!r} refuses component "
+                                f"{component!r}: it already hosts {len(self._children)} "
+                                f"components (--max-components {self.max_components})")
+            child = ChildProcess(launch, run_id, connect[0], session_config=session_conf,
+                                 handshake_timeout_s=self.orphan_timeout_s)
+            self._children[(run_id, component)] = _Hosted(child, run_id, token, time.monotonic())
+            self._watch_master(run_id)
         return child.pid
+
+    def _watch_master(self, run_id: str) -> None:
+        """Follow the liveliness token of the run's master (called under the lock)."""
+        if self._session is not None and run_id not in self._masters:
+            self._masters[run_id] = self._session.liveliness().declare_subscriber(
+                master_alive_key(run_id), history=True)
 
     def _receive_fmu(self, component: str, payload: Any) -> Path:
         """Check and cache the FMU a start request carries; its path on this host."""
@@ -188,21 +249,49 @@ class Worker:
     def _stop(self, request: dict[str, Any]) -> int | None:
         key = (str(request["run_id"]), str(request["component"]))
         with self._lock:
-            child = self._children.get(key)
-        if child is None:
+            hosted = self._children.get(key)
+        if hosted is None:
             return None  # already ended (and reported)
-        _end_process(child)
-        return child.exit_code()
+        if not hmac.compare_digest(hosted.token.encode(),
+                                   str(request.get("run_token") or "").encode()):
+            raise UserError(f"worker {self.name!r} on host {self.host!r} refuses to stop "
+                            f"component {key[1]!r} of run {key[0]!r}: the request does not "
+                            f"come from the run that started it")
+        _end_process(hosted.child)
+        return hosted.child.exit_code()
 
     # ------------------------------------------------------------------ children
     def _reap_loop(self, stop_event: threading.Event) -> None:
         while not stop_event.wait(REAP_POLL_S):
+            for hosted in self._orphans():
+                _end_process(hosted.child)
             with self._lock:
-                ended = [(k, c) for k, c in self._children.items() if c.exit_code() is not None]
+                ended = [(k, h.child) for k, h in self._children.items()
+                         if h.child.exit_code() is not None]
                 for key, _ in ended:
                     del self._children[key]
+                self._forget_masters()
             for (run_id, component), child in ended:
                 self._notify_exit(run_id, component, child)
+
+    def _orphans(self) -> list[_Hosted]:
+        """Children whose master is gone, or has not appeared within the timeout."""
+        with self._lock:
+            for run_id, watcher in self._masters.items():
+                while (sample := watcher.try_recv()) is not None:
+                    self._master_seen[run_id] = sample.kind != zenoh.SampleKind.DELETE
+            late = time.monotonic() - self.orphan_timeout_s
+            return [h for h in self._children.values() if h.child.exit_code() is None
+                    and (self._master_seen.get(h.run_id) is False
+                         or (h.run_id not in self._master_seen and h.started < late))]
+
+    def _forget_masters(self) -> None:
+        """Undeclare the master watchers of runs that have no child here any more
+        (called under the lock)."""
+        running = {h.run_id for h in self._children.values()}
+        for run_id in [r for r in self._masters if r not in running]:
+            self._masters.pop(run_id).undeclare()
+            self._master_seen.pop(run_id, None)
 
     def _notify_exit(self, run_id: str, component: str, child: ChildProcess) -> None:
         notice = {"worker": self.name, "host": self.host, "exit_code": child.exit_code(),
@@ -215,8 +304,9 @@ class Worker:
 
     def _stop_all(self) -> None:
         with self._lock:
-            children = list(self._children.values())
+            children = [h.child for h in self._children.values()]
             self._children.clear()
+            self._forget_masters()
         for child in children:
             _end_process(child)
             child.close_log()

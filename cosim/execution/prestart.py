@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.scenario.imports import import_roots
+from cosim.transport.zenoh.auth import Credential, new_credential
 from cosim.transport.zenoh.processes import ChildProcess, reap
 
 GRACE_S = 2.0
@@ -31,11 +32,13 @@ class Prestart:
     Attributes:
         run_id: the run id they were started with (the run must use it).
         endpoint: the master endpoint they will connect to.
+        credential: the run's credential they will present (the run must use it).
         children: component name -> process.
     """
 
     run_id: str
     endpoint: str
+    credential: Credential
     children: dict[str, ChildProcess] = field(default_factory=dict)
 
     def close(self) -> None:
@@ -104,12 +107,13 @@ def prestart_components(scenario_file: str | Path) -> Prestart | None:
         return None  # loading the scenario reports it properly (deep nesting included)
     if not names or len(set(names)) != len(names):
         return None
-    prestart = Prestart(uuid.uuid4().hex[:12], free_tcp_endpoint())
+    run_id = uuid.uuid4().hex[:12]
+    prestart = Prestart(run_id, free_tcp_endpoint(), new_credential(run_id))
     roots = import_roots(scenario_file)
     try:
         for name in names:
-            prestart.children[name] = ChildProcess.prestart(name, prestart.run_id,
-                                                            prestart.endpoint, found[name], roots)
+            prestart.children[name] = ChildProcess.prestart(
+                name, prestart.run_id, prestart.endpoint, found[name], roots, prestart.credential)
     except BaseException:
         prestart.close()
         raise

@@ -257,7 +257,7 @@ def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s
                                        settings=deploy)
     elif prestart is not None:
         remote = ZenohComponents(launches, run_id, deadline_s, prestart.endpoint,
-                                 prestarted=prestart.children)
+                                 prestarted=prestart.children, credential=prestart.credential)
     else:
         remote = ZenohComponents(launches, run_id, deadline_s)
     stack.callback(remote.close)
@@ -266,6 +266,17 @@ def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s
     if on_live is not None:
         on_live(run_id, remote.endpoint)
     return remote
+
+
+def _write_live_credential(out: Path, remote: Any) -> None:
+    """The run's credential, for `cosim watch FOLDER`: owner-only, before the manifest."""
+    credential = getattr(remote, "live_credential", None)
+    if credential is not None:
+        from cosim.transport.zenoh.auth import LIVE_CREDENTIAL_FILE, write_credential_file
+
+        path = out / LIVE_CREDENTIAL_FILE
+        path.unlink(missing_ok=True)
+        write_credential_file(path, credential)
 
 
 def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock, out: Path,
@@ -352,6 +363,7 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
     if remote is not None:  # where a watcher connects to see the run live
         live = {"run_id": run_id, "endpoint": remote.endpoint}
         manifest["live"] = live
+        _write_live_credential(out, remote)
         manifest["startup_processes_s"] = dict(getattr(remote, "process_startup_s", {}))
     manifest["hosts"].update(getattr(remote, "hosts", {}))
     manifest["startup"] = clock.as_dict()

@@ -98,6 +98,7 @@ def test_watching_a_run_from_a_second_process_prints_the_recorded_values(tmp_pat
     assert "ended" not in watcher.stderr  # it stopped after --count lines
     live = json.loads((out / "manifest.json").read_text())["live"]
     assert live == {"run_id": run_id, "endpoint": endpoint}
+    assert (out / "live.credential").stat().st_mode & 0o777 == 0o600  # the watcher's key
     names, data = read_signals(out / "signals.csv")
     printed = watcher.stdout.splitlines()
     assert len(printed) == 4
@@ -107,4 +108,47 @@ def test_watching_a_run_from_a_second_process_prints_the_recorded_values(tmp_pat
     for tick, line in zip(ticks, printed):
         row = data[tick]
         assert line == format_line(tick, row[0], {"gain.y": row[names.index("gain.y")]},
+                                   ["gain.y"])
+
+
+@pytest.mark.integration
+@pytest.mark.timeout(180)
+def test_watch_with_deploy_follows_a_tls_run_and_without_it_says_it_cannot_connect(tmp_path):
+    certs = tmp_path / "certs"
+    subprocess.run(["sh", str(ROOT / "examples" / "tls" / "make_certs.sh"), str(certs), "node",
+                    "127.0.0.1"], check=True, capture_output=True)
+    tls = ("tls:\n  root_ca_certificate: certs/ca.pem\n  certificate: certs/node.pem\n"
+           "  private_key: certs/node-key.pem\n")
+    (tmp_path / "master.yaml").write_text("listen: [tls/127.0.0.1:0]\n" + tls)
+    (tmp_path / "watch.yaml").write_text(tls)
+    scenario = tmp_path / "gain.yaml"
+    scenario.write_text(GOOD)
+    out = tmp_path / "run"
+    run = subprocess.Popen([sys.executable, "-m", "cosim.cli.app", "run", str(scenario), "--out",
+                            str(out), "--no-figures", "--set", "duration=20.0", "--realtime", "1",
+                            "--deploy", str(tmp_path / "master.yaml")],
+                           cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, text=True)
+    try:
+        assert run.stdout.readline() == f"run folder: {out}\n"
+        endpoint = run.stdout.readline().split()[4]
+        assert endpoint.startswith("tls/127.0.0.1:")
+        watcher = subprocess.run(
+            [sys.executable, "-m", "cosim.cli.app", "watch", str(out), "--deploy",
+             str(tmp_path / "watch.yaml"), "--signals", "gain.y", "--every", "10", "--count", "3"],
+            cwd=tmp_path, env=_env(), capture_output=True, text=True, timeout=60)
+        refused = subprocess.run([sys.executable, "-m", "cosim.cli.app", "watch", str(out)],
+                                 cwd=tmp_path, env=_env(), capture_output=True, text=True,
+                                 timeout=60)
+        assert run.wait(timeout=90) == 0
+    finally:
+        run.kill()
+    assert refused.returncode == 2
+    assert f"cannot open a session with {endpoint} within" in refused.stderr
+    assert watcher.returncode == 0, watcher.stderr
+    names, data = read_signals(out / "signals.csv")
+    printed = watcher.stdout.splitlines()
+    assert len(printed) == 3
+    for line in printed:
+        tick = int(line.split()[1])
+        assert line == format_line(tick, data[tick][0], {"gain.y": data[tick][names.index("gain.y")]},
                                    ["gain.y"])

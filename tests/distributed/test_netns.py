@@ -22,6 +22,7 @@ import pytest
 
 from cosim.cli.app import main
 from cosim.results.recorder import read_signals
+from tests.helpers.credentials import auth_deploy_file, shared_credentials_file
 from tests.helpers import netns
 from tests.helpers.paths import REPO_ROOT
 
@@ -151,7 +152,8 @@ def hosts(lab, _workers):
         if name in _workers and _workers[name].proc.poll() is not None:
             _workers.pop(name).close()
         if name not in _workers:
-            _workers[name] = Host(lab, host, name, "--listen", f"tcp/{lab.address(host)}:{PORT}")
+            _workers[name] = Host(lab, host, name, "--listen", f"tcp/{lab.address(host)}:{PORT}",
+                                  "--deploy", str(AUTH_DEPLOY()))
     return _workers
 
 
@@ -162,12 +164,18 @@ def expected_short(tmp_path_factory) -> bytes:
     return local_run(write_scenario(folder), folder / "run")
 
 
+def AUTH_DEPLOY() -> Path:  # noqa: N802 - a constant, made on first use
+    """The deployment file with the workers' shared credential (masters and workers)."""
+    return auth_deploy_file(shared_credentials_file().parent)
+
+
 def master_argv(lab: netns.NetLab, scenario: Path, out: Path, *extra: str) -> list[str]:
     argv = [sys.executable, "-m", "cosim.cli.app", "run", str(scenario), "--out", str(out),
             "--no-figures", "--deadline", str(DEADLINE_S),
             "--listen", f"tcp/{lab.address('master')}:0",
             "--connect", f"tcp/{lab.address('a')}:{PORT}",
-            "--connect", f"tcp/{lab.address('b')}:{PORT}", *extra]
+            "--connect", f"tcp/{lab.address('b')}:{PORT}", "--deploy", str(AUTH_DEPLOY()),
+            *extra]
     return lab.exec("master", argv)
 
 
@@ -215,7 +223,8 @@ def test_three_hosts_bit_identical_to_local_run(lab, hosts, tmp_path, expected_s
     assert manifest["hosts"]["mixer"].startswith("wa@") and manifest["hosts"]["echo"].startswith("wb@")
     listing = subprocess.run(lab.exec("master", [
         sys.executable, "-m", "cosim.cli.app", "workers", "--timeout", "1",
-        "--connect", f"tcp/{lab.address('a')}:{PORT}", "--connect", f"tcp/{lab.address('b')}:{PORT}"]),
+        "--connect", f"tcp/{lab.address('a')}:{PORT}", "--connect", f"tcp/{lab.address('b')}:{PORT}",
+        "--deploy", str(AUTH_DEPLOY())]),
         cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=60)
     assert listing.returncode == 0 and "2 worker(s)" in listing.stdout
     assert "wa" in listing.stdout and "wb" in listing.stdout
@@ -397,3 +406,58 @@ def test_tls_run_across_hosts(lab, tmp_path, expected_short):
     finally:
         for worker in workers:
             worker.close()
+
+
+INTRUDER = """
+import json, sys, time, zenoh
+from cosim.distributed.deploy import DeploySettings, zenoh_config
+master, worker, run_id = sys.argv[1:4]
+session = zenoh.open(zenoh_config(DeploySettings(), "peer", [], [master, worker]))
+seen = session.declare_subscriber("cosim/**", zenoh.handlers.RingChannel(1024))
+start = {"op": "start", "run_id": "evil", "run_token": "x", "component": "c",
+         "class_path": "tests.helpers.components:Mixer", "parameters": {}, "connect": [master]}
+counts = {"seen": 0, "replies": 0, "sent": 0}
+end = time.monotonic() + 3.0
+while time.monotonic() < end:
+    for key in (f"cosim/{run_id}/ctl/echo/rep", f"cosim/{run_id}/live/data"):
+        session.put(key, b"FORGED")
+        counts["sent"] += 1
+    for request in ({"op": "info"}, start, {"op": "stop", "run_id": run_id, "component": "echo"}):
+        counts["replies"] += sum(r.ok is not None for r in session.get(
+            "cosim/workers/*", payload=json.dumps(request).encode(), timeout=0.1))
+    while (sample := seen.try_recv()) is not None:
+        counts["seen"] += sample.payload.to_bytes() != b"FORGED"
+print(json.dumps(counts), flush=True)
+session.close()
+"""
+
+
+def test_a_host_without_the_credential_sees_injects_and_starts_nothing(lab, hosts, tmp_path,
+                                                                       expected_short):
+    """An intruder on host b (no credential) talks to the master of a running
+    cross-host run and to worker wa for 3 s: it receives nothing, its forged
+    messages change nothing (the run is bit-identical), its requests get no reply."""
+    scenario = write_scenario(tmp_path, duration=0.5)
+    out = tmp_path / "watched"
+    proc = start_master(lab, scenario, out, "--place", "echo=wb", "--realtime", "0.1")
+    try:
+        manifest = out / "manifest.json"
+        end = time.monotonic() + 60
+        while not (manifest.is_file() and "live" in manifest.read_text()):
+            assert time.monotonic() < end and proc.poll() is None, "the run never started"
+            time.sleep(0.05)
+        live = json.loads(manifest.read_text())["live"]
+        intruder = subprocess.run(lab.exec("b", [
+            sys.executable, "-c", INTRUDER, live["endpoint"], f"tcp/{lab.address('a')}:{PORT}",
+            live["run_id"]]), cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=60)
+        code, err = finish(proc)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert intruder.returncode == 0, intruder.stderr
+    counts = json.loads(intruder.stdout)
+    assert counts["sent"] > 100
+    assert (counts["seen"], counts["replies"]) == (0, 0)
+    assert code == 0, err
+    assert (out / "signals.csv").read_bytes() == expected_short

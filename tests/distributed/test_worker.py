@@ -23,6 +23,7 @@ from cosim.distributed.client import DistributedComponents, list_workers, master
 from cosim.distributed.protocol import encode, module_allowed
 from cosim.transport.zenoh.config import free_tcp_endpoint
 from tests.helpers.components import bits, launch, run_processes
+from tests.helpers.credentials import auth_deploy_file, shared_auth
 from tests.helpers.paths import REPO_ROOT
 
 ROOT = REPO_ROOT
@@ -49,13 +50,14 @@ class WorkerThread:
 @pytest.fixture
 def worker():
     endpoint = free_tcp_endpoint()
-    agent = WorkerThread("w1", DeploySettings(listen=[endpoint]))
+    agent = WorkerThread("w1", DeploySettings(listen=[endpoint], auth=shared_auth()))
     agent.endpoint = endpoint
     yield agent
     agent.close()
 
 
 def settings_for(worker_endpoint: str, **extra) -> DeploySettings:
+    extra.setdefault("auth", shared_auth())  # the workers' credential (a deployment file's auth:)
     return DeploySettings(listen=["tcp/127.0.0.1:0"], connect=[worker_endpoint], **extra)
 
 
@@ -77,7 +79,7 @@ def test_module_allow_list(class_path, allowed):
 
 
 def test_refused_and_malformed_requests_name_the_worker():
-    agent = Worker("w7", DeploySettings(), ["controllers."])
+    agent = Worker("w7", DeploySettings(auth=shared_auth()), ["controllers."])
     start = {"op": "start", "run_id": "r1", "component": "ctl", "class_path": "os:system",
              "parameters": {}, "connect": ["tcp/127.0.0.1:1"]}
     reply = agent.handle(encode(start))
@@ -252,12 +254,14 @@ def test_cli_run_with_place_matches_inproc_and_workers_lists(worker, tmp_path, c
     scenario.write_text(SCENARIO)
     assert main(["run", str(scenario), "--out", str(tmp_path / "local"), "--transport",
                  "inproc", "--place", "mixer=local", "--no-figures"]) == 0
+    deploy = str(auth_deploy_file(tmp_path))
     assert main(["run", str(scenario), "--out", str(tmp_path / "remote"), "--place",
                  "echo=w1", "--listen", "tcp/127.0.0.1:0", "--connect", worker.endpoint,
-                 "--no-figures"]) == 0
+                 "--deploy", deploy, "--no-figures"]) == 0
     local, remote = tmp_path / "local" / "signals.csv", tmp_path / "remote" / "signals.csv"
     assert local.read_bytes() == remote.read_bytes() and len(local.read_text().splitlines()) > 30
-    assert main(["workers", "--connect", worker.endpoint, "--timeout", "0.5"]) == 0
+    assert main(["workers", "--connect", worker.endpoint, "--timeout", "0.5",
+                 "--deploy", deploy]) == 0
     out = capsys.readouterr().out
     assert "1 worker(s)" in out and "w1" in out and "tests.helpers.components" in out
     assert main(["run", str(scenario), "--out", str(tmp_path / "bad"), "--transport",
@@ -313,7 +317,8 @@ def test_parameter_rejected_on_worker_names_its_yaml_line(worker, tmp_path, caps
     expected = f"{path}:10: " + located.format(known=known)
     out = tmp_path / "run"
     assert main(["run", str(path), "--listen", "tcp/127.0.0.1:0", "--connect", worker.endpoint,
-                 "--out", str(out), "--no-figures"]) == 2
+                 "--deploy", str(auth_deploy_file(tmp_path)), "--out", str(out),
+                 "--no-figures"]) == 2
     assert capsys.readouterr().err == f"error: {expected}\n"  # as in-process and local Zenoh
     manifest = json.loads((out / "manifest.json").read_text())
     assert (manifest["status"], manifest["error"]) == ("failed", expected)
@@ -427,15 +432,17 @@ def test_router_joins_master_and_worker_that_only_know_the_router():
     from cosim.distributed.router import run_router
     router_endpoint = free_tcp_endpoint()
     stop, ready = threading.Event(), threading.Event()
-    router = threading.Thread(target=run_router, args=(DeploySettings(listen=[router_endpoint]),
+    router = threading.Thread(target=run_router, args=(DeploySettings(listen=[router_endpoint],
+                                                                      auth=shared_auth()),
                                                        stop, ready.set))
     router.start()
     agent = None
     try:
         assert ready.wait(20)
-        agent = WorkerThread("wr", DeploySettings(connect=[router_endpoint]))
+        agent = WorkerThread("wr", DeploySettings(connect=[router_endpoint], auth=shared_auth()))
         assert agent.worker.mode == "client"
-        assert [w["name"] for w in list_workers(DeploySettings(connect=[router_endpoint]),
+        assert [w["name"] for w in list_workers(DeploySettings(connect=[router_endpoint],
+                                                               auth=shared_auth()),
                                                 1.0)] == ["wr"]
         spec = launch("mix", "Mixer", gain=4.0)
         local = InprocComponent(spec)

@@ -22,6 +22,7 @@ from cosim.distributed.client import DistributedComponents
 from cosim.distributed.protocol import encode
 from cosim.transport.zenoh.config import free_tcp_endpoint
 from tests.distributed.test_worker import WorkerThread, settings_for
+from tests.helpers.credentials import shared_auth
 from tests.helpers.components import bits, run_processes
 
 TICK = 0.01
@@ -42,7 +43,7 @@ def plant_inputs(k: int) -> dict[str, float]:
 def test_fmu_on_worker_matches_local_fmu_bit_for_bit(bicycle):
     path, interface = bicycle
     endpoint = free_tcp_endpoint()
-    agent = WorkerThread("wf", DeploySettings(listen=[endpoint]), allow=["controllers."])
+    agent = WorkerThread("wf", DeploySettings(listen=[endpoint], auth=shared_auth()), allow=["controllers."])
     agent.worker.allow_fmu = True
     run_id = f"t-fmu-{os.getpid()}"
     local = FmuComponent("vehicle", path, interface, PARAMETERS, 1)
@@ -72,7 +73,7 @@ def test_worker_refuses_fmus_unless_allowed_and_checks_the_hash(bicycle, tmp_pat
     request = {"op": "start", "run_id": "r1", "component": "vehicle",
                "class_path": launch.class_path, "parameters": dict(launch.parameters),
                "connect": ["tcp/127.0.0.1:1"], "fmu": fmu_payload(launch)}
-    closed = Worker("w0", DeploySettings(), ["controllers."])
+    closed = Worker("w0", DeploySettings(auth=shared_auth()), ["controllers."])
     reply = closed.handle(encode(request))
     assert reply["ok"] is False
     assert "worker 'w0'" in reply["error"] and "refuses FMU component 'vehicle'" in reply["error"]
@@ -82,7 +83,7 @@ def test_worker_refuses_fmus_unless_allowed_and_checks_the_hash(bicycle, tmp_pat
     bad = {"sha256": sha256_of(data), "data": base64.b64encode(tampered).decode()}
     with pytest.raises(ValueError, match="do not match their sha256"):
         store_fmu(bad, tmp_path)
-    opened = Worker("w1", DeploySettings(), ["controllers."], allow_fmu=True)
+    opened = Worker("w1", DeploySettings(auth=shared_auth()), ["controllers."], allow_fmu=True)
     reply = opened.handle(encode({**request, "fmu": bad}))
     assert reply["ok"] is False and "do not match their sha256" in reply["error"]
     assert "worker 'w1'" in reply["error"] and opened.info()["running"] == 0
@@ -93,7 +94,7 @@ def test_worker_refuses_fmus_unless_allowed_and_checks_the_hash(bicycle, tmp_pat
 def test_fmu_refusal_reaches_the_master(bicycle):
     path, _ = bicycle
     endpoint = free_tcp_endpoint()
-    agent = WorkerThread("wn", DeploySettings(listen=[endpoint]), allow=["controllers."])
+    agent = WorkerThread("wn", DeploySettings(listen=[endpoint], auth=shared_auth()), allow=["controllers."])
     try:
         with pytest.raises(UserError, match=r"worker 'wn' on host .* refuses FMU component "
                                             r"'vehicle'.*--allow-fmu"):

@@ -115,20 +115,21 @@ def bits(values: Mapping[str, Value]) -> dict[str, tuple[str, bytes]]:
 
 
 def run_processes(run_id: str) -> list[int]:
-    """Pids of live (non-zombie) processes whose command line names `run_id`."""
+    """Pids of live (non-zombie) component processes of run `run_id` (their
+    COSIM_RUN_ID: the run id is not on their command line)."""
     import os
     found = []
     for entry in os.listdir("/proc"):
         if not entry.isdigit():
             continue
         try:
-            with open(f"/proc/{entry}/cmdline", "rb") as f:
-                argv = f.read().split(b"\0")
+            with open(f"/proc/{entry}/environ", "rb") as f:
+                environ = f.read().split(b"\0")
             with open(f"/proc/{entry}/stat") as f:
                 state = f.read().rsplit(")", 1)[1].split()[0]
         except OSError:
             continue
-        if run_id.encode() in argv and state != "Z":
+        if b"COSIM_RUN_ID=" + run_id.encode() in environ and state != "Z":
             found.append(int(entry))
     return found
 

@@ -100,6 +100,7 @@ def test_live_watcher_sees_the_recorded_values(tmp_path):
     import threading
     import time
 
+    from cosim.transport.zenoh.auth import LIVE_CREDENTIAL_FILE, read_credential_file
     from cosim.transport.zenoh.live import watch
 
     scenario = tmp_path / "gain.yaml"
@@ -114,7 +115,8 @@ def test_live_watcher_sees_the_recorded_values(tmp_path):
                 break
             time.sleep(0.05)
         live = json.loads(manifest.read_text())["live"]
-        for tick, t, values in watch(live["run_id"], live["endpoint"]):
+        credential = read_credential_file(out / LIVE_CREDENTIAL_FILE)  # owner-only, in the folder
+        for tick, t, values in watch(live["run_id"], live["endpoint"], credential):
             received.append((tick, t, values))
             if len(received) >= 5:
                 return

@@ -87,7 +87,7 @@ def test_stopped_process_fails_after_the_deadline():
     failure = fail_at_step([launch("mixer", "Mixer")], "mixer", 10, deadline_s=0.5,
                            before_step=stop_it)
     assert (failure.component, failure.tick) == ("mixer", 2)
-    assert failure.cause == "no reply within the deadline of 0.5 s (process hung or stopped)"
+    assert failure.cause == "no reply within the deadline of 0.5 s (process stopped or not responding)"
 
 
 def test_after_a_failure_the_others_still_stop_cleanly():

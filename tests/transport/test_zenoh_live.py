@@ -12,22 +12,37 @@ import numpy as np
 import pytest
 
 from cosim.transport.zenoh import ZenohComponents
+from cosim.transport.zenoh.auth import new_credential, write_credential_file
 from cosim.transport.zenoh.config import free_tcp_endpoint
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(60)]
 
 WATCHER = """
 import json, sys
+from cosim.transport.zenoh.auth import read_credential_file
 from cosim.transport.zenoh.live import watch
-for n, (tick, t, values) in enumerate(watch(sys.argv[1], sys.argv[2]), 1):
+credential = read_credential_file(sys.argv[4])
+for n, (tick, t, values) in enumerate(watch(sys.argv[1], sys.argv[2], credential), 1):
     print(json.dumps([tick, t.hex(), {k: v.hex() for k, v in values.items()}]), flush=True)
     if n == int(sys.argv[3]):
         break
 """
 
 
-def start_watcher(run_id: str, endpoint: str, count: int = -1) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-c", WATCHER, run_id, endpoint, str(count)],
+CREDENTIAL = new_credential("live-tests")  # every run of this module uses it
+
+
+@pytest.fixture(scope="module")
+def credential_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("auth") / "live.credential"
+    write_credential_file(path, CREDENTIAL)
+    return path
+
+
+def start_watcher(run_id: str, endpoint: str, credential_file, count: int = -1
+                  ) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-c", WATCHER, run_id, endpoint, str(count),
+                             str(credential_file)],
                             stdout=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONPATH": os.getcwd()})
 
@@ -39,14 +54,14 @@ def wait_for_watcher(hosted: ZenohComponents) -> None:
         time.sleep(0.02)
 
 
-def test_watcher_sees_every_tick_exactly():
+def test_watcher_sees_every_tick_exactly(credential_file):
     run_id, endpoint = f"t-live-{os.getpid()}", free_tcp_endpoint()
     names = ["vehicle.x", "vehicle.y", "controller.delta"]
     rng = np.random.default_rng(3)
     published = []
-    watcher = start_watcher(run_id, endpoint)
+    watcher = start_watcher(run_id, endpoint, credential_file)
     try:
-        with ZenohComponents([], run_id, endpoint=endpoint) as hosted:
+        with ZenohComponents([], run_id, endpoint=endpoint, credential=CREDENTIAL) as hosted:
             hosted.publish(0, 0.0, names, np.zeros(3))  # nobody listens yet: a no-op
             wait_for_watcher(hosted)
             for k in range(1, 61):
@@ -61,11 +76,11 @@ def test_watcher_sees_every_tick_exactly():
     assert seen == published
 
 
-def test_watching_any_run_with_a_star_and_changing_names():
+def test_watching_any_run_with_a_star_and_changing_names(credential_file):
     run_id, endpoint = f"t-live-star-{os.getpid()}", free_tcp_endpoint()
-    watcher = start_watcher("*", endpoint, count=5)
+    watcher = start_watcher("*", endpoint, credential_file, count=5)
     try:
-        with ZenohComponents([], run_id, endpoint=endpoint) as hosted:
+        with ZenohComponents([], run_id, endpoint=endpoint, credential=CREDENTIAL) as hosted:
             wait_for_watcher(hosted)
             for k in range(1, 3):
                 hosted.publish(k, k * 0.5, ["a", "b"], np.array([k, -k], dtype=float))
@@ -80,11 +95,11 @@ def test_watching_any_run_with_a_star_and_changing_names():
          | ({"c": "0x0.0p+0"} if k >= 3 else {})] for k in range(1, 6)]
 
 
-def test_publish_checks_names_against_values_when_watched():
+def test_publish_checks_names_against_values_when_watched(credential_file):
     run_id, endpoint = f"t-live2-{os.getpid()}", free_tcp_endpoint()
-    watcher = start_watcher(run_id, endpoint)
+    watcher = start_watcher(run_id, endpoint, credential_file)
     try:
-        with ZenohComponents([], run_id, endpoint=endpoint) as hosted:
+        with ZenohComponents([], run_id, endpoint=endpoint, credential=CREDENTIAL) as hosted:
             wait_for_watcher(hosted)
             with pytest.raises(ValueError, match="2 values for 3 names"):
                 hosted.publish(1, 0.01, ["a", "b", "c"], np.zeros(2))
@@ -99,18 +114,18 @@ def test_watch_rejects_a_bad_run_id():
         next(watch("bad/id", "tcp/127.0.0.1:1"))
 
 
-def test_a_watcher_joining_later_gets_the_names_by_query():
+def test_a_watcher_joining_later_gets_the_names_by_query(credential_file):
     """The in-band names went to the first watcher only; the second one asks."""
     run_id, endpoint = f"t-live-late-{os.getpid()}", free_tcp_endpoint()
     names = ["p.a", "p.b"]
-    first = start_watcher(run_id, endpoint)
+    first = start_watcher(run_id, endpoint, credential_file)
     second = None
     try:
-        with ZenohComponents([], run_id, endpoint=endpoint) as hosted:
+        with ZenohComponents([], run_id, endpoint=endpoint, credential=CREDENTIAL) as hosted:
             wait_for_watcher(hosted)
             hosted.publish(1, 0.5, names, np.array([1.0, 2.0]))
             assert json.loads(first.stdout.readline())[0] == 1  # names were sent in band
-            second = start_watcher(run_id, endpoint, count=3)
+            second = start_watcher(run_id, endpoint, credential_file, count=3)
             end = time.monotonic() + 30
             k = 2
             while second.poll() is None and time.monotonic() < end:

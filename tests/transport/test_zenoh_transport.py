@@ -10,6 +10,7 @@ import pytest
 
 from cosim.transport.inproc import InprocComponent
 from cosim.transport.zenoh import ZenohComponents
+from cosim.transport.zenoh.auth import new_credential
 from tests.helpers.components import bits, launch, run_processes
 
 pytestmark = pytest.mark.integration
@@ -59,11 +60,14 @@ def test_three_processes_match_inproc_bit_for_bit():
 
 
 def test_two_runs_on_one_network_do_not_mix():
-    """Two masters joined peer to peer, same component names, different run ids."""
+    """Two masters joined peer to peer, same component names, different run ids (one
+    credential for both, as with a shared one: otherwise they could not even link)."""
     spec_a, spec_b = launch("mixer", "Mixer", gain=2.0), launch("mixer", "Mixer", gain=-3.0)
     local_a, local_b = InprocComponent(spec_a), InprocComponent(spec_b)
-    with ZenohComponents([spec_a], run_id=f"t-a-{os.getpid()}") as run_a, \
-            ZenohComponents([spec_b], run_id=f"t-b-{os.getpid()}", connect=[run_a.endpoint]) as run_b:
+    shared = new_credential("shared")
+    with ZenohComponents([spec_a], run_id=f"t-a-{os.getpid()}", credential=shared) as run_a, \
+            ZenohComponents([spec_b], run_id=f"t-b-{os.getpid()}", connect=[run_a.endpoint],
+                            credential=shared) as run_b:
         remote_a, remote_b = run_a.components["mixer"], run_b.components["mixer"]
         rng = np.random.default_rng(9)
         inputs = {"u": 1.25, "w": np.array([0.5, -0.25, 2.0])}

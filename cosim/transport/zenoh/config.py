@@ -3,7 +3,8 @@
 Every session is a peer with multicast scouting off and explicit endpoints
 (DESIGN.md, "Zenoh: measured facts"): the master listens on one TCP endpoint,
 component processes and watchers connect to it. All keys live under
-`cosim/<run_id>/`, so runs sharing a network never see each other's traffic.
+`cosim/<run_id>/`, so runs sharing a network never see each other's traffic;
+the sessions of a run authenticate with its credential (`auth`).
 """
 
 from __future__ import annotations
@@ -74,30 +75,37 @@ def free_tcp_endpoint(host: str = "127.0.0.1") -> str:
     return f"tcp/{host}:{port}"
 
 
-def _peer_config(listen: list[str], connect: list[str]) -> zenoh.Config:
+def _peer_config(listen: list[str], connect: list[str],
+                 security: dict[str, Any] | None = None) -> zenoh.Config:
     settings: dict[str, Any] = {
         "mode": "peer",
         "listen": {"endpoints": listen},
         "connect": {"endpoints": connect},
         "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": False}},
+        **(security or {}),
     }
     return zenoh.Config.from_json5(json.dumps(settings))
 
 
-def master_config(listen_endpoint: str, connect: list[str] | None = None) -> zenoh.Config:
+def master_config(listen_endpoint: str, connect: list[str] | None = None,
+                  security: dict[str, Any] | None = None) -> zenoh.Config:
     """Config of the master's session.
 
     Args:
         listen_endpoint: where components and watchers connect, e.g. "tcp/127.0.0.1:7447".
         connect: extra endpoints to join (another master, a router), or None.
+        security: authentication and ACL blocks (`cosim.transport.zenoh.auth.security_settings`),
+            or None for a plain session.
     """
-    return _peer_config([listen_endpoint], list(connect or []))
+    return _peer_config([listen_endpoint], list(connect or []), security)
 
 
-def client_peer_config(connect_endpoint: str) -> zenoh.Config:
+def client_peer_config(connect_endpoint: str,
+                       security: dict[str, Any] | None = None) -> zenoh.Config:
     """Config of a component process or a watcher: a peer that only connects.
 
     Args:
         connect_endpoint: the master's listen endpoint.
+        security: the run's credential block (see `master_config`), or None.
     """
-    return _peer_config([], [connect_endpoint])
+    return _peer_config([], [connect_endpoint], security)

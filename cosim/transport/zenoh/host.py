@@ -9,6 +9,10 @@ of that component's replies (exact keys: no wildcard on the hot path); the
 watchdog wakes that wait on a death (of any component) or a missed deadline,
 which then raises `ComponentFailure`.
 
+Every session of the run authenticates with the run's credential (Zenoh
+user-password; see `cosim.transport.zenoh.auth`): the master accepts only
+peers that present it, and only on the run's keys.
+
 Start-up is ordered for speed: `spawn()` opens the session and starts the
 processes before this module loads numpy (codec, live view, watchdog), so
 the children's interpreters start while the master finishes its own imports.
@@ -24,7 +28,8 @@ import zenoh
 
 from cosim.errors import ComponentFailure, UserError
 from cosim.transport.launch import PythonComponentLaunch
-from cosim.transport.zenoh import config
+from cosim.transport.zenoh import auth, config
+from cosim.transport.zenoh.auth import Credential, Dictionary, new_credential
 from cosim.transport.zenoh.processes import ChildProcess, reap
 from cosim.transport.zenoh.wire import HEADER, CodecError, Kind, decode_json, header_tick
 
@@ -82,14 +87,17 @@ class ZenohComponents:
         connect: extra endpoints the master joins (a router, another host), or None.
         startup_timeout_s: longest wait for every process's handshake.
         prestarted: processes already started with `ChildProcess.prestart` (same
-            run id and `endpoint`), by component name; `spawn` sends them their
-            spec instead of starting new ones and ends those no spec names.
+            run id, `endpoint` and `credential`), by component name; `spawn` sends
+            them their spec instead of starting new ones and ends those no spec names.
+        credential: what every session of the run authenticates with (None: a new
+            random one); the master accepts only peers that present it.
     """
 
     def __init__(self, specs: Sequence[PythonComponentLaunch], run_id: str,
                  deadline_s: float = 5.0, endpoint: str | None = None, *,
                  connect: Sequence[str] | None = None, startup_timeout_s: float = 20.0,
-                 prestarted: Mapping[str, ChildProcess] | None = None) -> None:
+                 prestarted: Mapping[str, ChildProcess] | None = None,
+                 credential: Credential | None = None) -> None:
         self.specs = list(specs)
         self.run_id = config.check_key_chunk(run_id, "run_id")
         names = [config.check_key_chunk(s.name, "component name") for s in self.specs]
@@ -101,6 +109,8 @@ class ZenohComponents:
         self.endpoint = endpoint
         self._connect = list(connect or [])
         self._startup_timeout_s = startup_timeout_s
+        self.credential = credential or new_credential(self.run_id)
+        self._dictionary: Dictionary | None = None
         self._components: dict[str, RemoteComponent] | None = None
         self.session: Any = None
         self._children: dict[str, ChildProcess] = {}
@@ -185,14 +195,30 @@ class ZenohComponents:
                 self._live = None
             self.session.close()
             self.session = None
+        if self._dictionary is not None:
+            self._dictionary.close()
+            self._dictionary = None
+
+    @property
+    def live_credential(self) -> Credential | None:
+        """What a watcher presents to this master (None: it accepts without one)."""
+        return self.credential
+
+    def _accepted(self) -> list[Credential]:
+        """The credentials the master's session accepts (a subclass adds a shared one)."""
+        return [self.credential]
 
     def _session_config(self, endpoint: str) -> zenoh.Config:
-        """Config of the master session listening on `endpoint` (a subclass may add TLS)."""
-        return config.master_config(endpoint, self._connect)
+        """Config of the master session listening on `endpoint`: only peers with the
+        run's credential, only the run's keys (a subclass may add TLS)."""
+        assert self._dictionary is not None
+        security = auth.security_settings(self.credential, str(self._dictionary.path),
+                                          self.run_id)
+        return config.master_config(endpoint, self._connect, security)
 
     def _spawn(self, spec: PythonComponentLaunch) -> ChildProcess:
         """Start the process of one component (a subclass may start it elsewhere)."""
-        return ChildProcess(spec, self.run_id, self.endpoint)
+        return ChildProcess(spec, self.run_id, self.endpoint, credential=self.credential)
 
     @property
     def pids(self) -> dict[str, int]:
@@ -202,6 +228,7 @@ class ZenohComponents:
     def _open_session(self) -> None:
         """Open the master session, listening on `endpoint` or on a free port."""
         attempts = 1 if self.endpoint else OPEN_ATTEMPTS
+        self._dictionary = Dictionary(self._accepted())
         for attempt in range(attempts):
             endpoint = self.endpoint or config.free_tcp_endpoint()
             try:

@@ -9,22 +9,26 @@ the listener also reports subscribers that were there before it). The names
 of the vector are answered by a queryable on
 `cosim/<run_id>/live/names`, and also sent in band (a NAMES message on the data
 key ahead of the first vector that uses them). `watch` is the other end, for
-another process.
+another process; it needs the run's credential (or a deployment file's
+session), and says so within seconds when it cannot link to the master.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+import time
 from collections.abc import Iterator, Sequence
 
 import numpy as np
 import zenoh
 
-from cosim.transport.zenoh import config
+from cosim.transport.zenoh import auth, config
+from cosim.transport.zenoh.auth import Credential
 from cosim.transport.zenoh.wire import HEADER, Kind
 
 NAMES_QUERY_TIMEOUT_S = 2.0
+CONNECT_TIMEOUT_S = 5.0
 WATCH_QUEUE = 4096  # samples kept for a slow watcher; older ones are dropped
 
 
@@ -103,7 +107,21 @@ def _fetch_names(session: zenoh.Session, run_id: str) -> tuple[int, list[str]]:
     raise TimeoutError(f"run {run_id!r}: no answer on {config.live_names_key(run_id)}")
 
 
-def watch(run_id: str = "*", endpoint: str = "tcp/127.0.0.1:7447"
+def _wait_linked(session: zenoh.Session, endpoint: str) -> None:
+    """Return once the session has a link to another node; ConnectionError after
+    CONNECT_TIMEOUT_S (a peer that cannot authenticate keeps retrying in silence)."""
+    end = time.monotonic() + CONNECT_TIMEOUT_S
+    while not (list(session.info.peers_zid()) or list(session.info.routers_zid())):
+        if time.monotonic() > end:
+            raise ConnectionError(
+                f"cannot open a session with {endpoint} within {CONNECT_TIMEOUT_S:g} s: "
+                f"the credential or certificate is missing or not the run's, or the run "
+                f"has ended")
+        time.sleep(0.02)
+
+
+def watch(run_id: str = "*", endpoint: str = "tcp/127.0.0.1:7447",
+          credential: Credential | None = None, conf: zenoh.Config | None = None
           ) -> Iterator[tuple[int, float, dict[str, float]]]:
     """Yield (tick, t, {signal name: value}) for every tick a running master publishes.
 
@@ -113,23 +131,34 @@ def watch(run_id: str = "*", endpoint: str = "tcp/127.0.0.1:7447"
     Args:
         run_id: the run to watch, or "*" for any.
         endpoint: the master's listen endpoint, e.g. "tcp/127.0.0.1:7447".
+        credential: the run's credential (its run folder's live.credential).
+        conf: a whole session config instead (a deployment file's TLS), or None.
+    Raises:
+        ConnectionError when no authenticated link to the master opens within
+        CONNECT_TIMEOUT_S (wrong credential or certificate, or nobody there).
     """
-    with contextlib.closing(watch_runs(run_id, endpoint)) as runs:  # session closed at once
+    with contextlib.closing(watch_runs(run_id, endpoint, credential, conf)) as runs:  # session closed at once
         for _, tick, t, values in runs:
             yield tick, t, values
 
 
-def watch_runs(run_id: str = "*", endpoint: str = "tcp/127.0.0.1:7447"
+def watch_runs(run_id: str = "*", endpoint: str = "tcp/127.0.0.1:7447",
+               credential: Credential | None = None, conf: zenoh.Config | None = None
                ) -> Iterator[tuple[str, int, float, dict[str, float]]]:
     """Like `watch`, with the run id of each tick first (for watching "*").
 
-    Args:
-        run_id: the run to watch, or "*" for any.
-        endpoint: the master's listen endpoint, e.g. "tcp/127.0.0.1:7447".
+    Args: as `watch`.
     """
     if run_id != "*":
         config.check_key_chunk(run_id, "run_id")
-    with zenoh.open(config.client_peer_config(endpoint)) as session:
+    if conf is None:
+        conf = config.client_peer_config(endpoint, auth.security_settings(credential))
+    try:
+        session = zenoh.open(conf)
+    except zenoh.ZError as exc:
+        raise ConnectionError(f"cannot open a session to {endpoint}: {exc}") from None
+    with session:
+        _wait_linked(session, endpoint)
         subscriber = session.declare_subscriber(config.live_data_key(run_id),
                                                 zenoh.handlers.RingChannel(WATCH_QUEUE))
         names: dict[str, tuple[int, list[str]]] = {}

@@ -1,7 +1,8 @@
 """Component OS processes: spawn the runner, describe how one ended, reap them all.
 
-Each process runs `python -m cosim.transport.zenoh.runner --name <name> ...`,
-so `ps` shows which component it hosts. Its stdout and stderr go to a
+Each process runs `python -m cosim.transport.zenoh.runner --name <name> --spec-stdin`,
+so `ps` shows which component it hosts, and nothing more: the run id, endpoint,
+credential, class and parameters come as one JSON line on its stdin. Its stdout and stderr go to a
 temporary file whose tail is quoted when the process dies unexpectedly.
 This module loads neither numpy nor zenoh: the master spawns the processes
 before it loads them, so that they start in parallel with its own imports.
@@ -25,8 +26,10 @@ import cosim
 from cosim.errors import UserError
 from cosim.scenario.imports import pythonpath
 from cosim.transport.launch import PythonComponentLaunch
+from cosim.transport.zenoh.auth import Credential
 
 TAIL_CHARS = 800
+STOPPED = "process stopped or not responding (it is stopped: SIGSTOP or a debugger)"
 PIPE_SAFE_BYTES = 16384  # written at once into an empty pipe (Linux pipes hold 64 KiB)
 
 
@@ -40,9 +43,10 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"{type(value).__name__} is not JSON-serializable")
 
 
-def _child_env(import_path: Sequence[str] = ()) -> dict[str, str]:
+def _child_env(run_id: str, import_path: Sequence[str] = ()) -> dict[str, str]:
     """Environment letting the child import cosim and the scenario's modules: `import_path`
-    (the scenario's folder and the cwd, `cosim.scenario.imports`), else the cwd.
+    (the scenario's folder and the cwd, `cosim.scenario.imports`), else the cwd;
+    COSIM_RUN_ID names its run for its owner (/proc/PID/environ is owner-only).
 
     OpenBLAS gets one thread unless the user says otherwise: a component works
     on small vectors, and numpy's import then starts no thread pool (about a
@@ -52,12 +56,12 @@ def _child_env(import_path: Sequence[str] = ()) -> dict[str, str]:
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     roots = [*(import_path or [os.getcwd()]), str(Path(cosim.__file__).resolve().parent.parent)]
     env["PYTHONPATH"] = pythonpath(roots, env.get("PYTHONPATH"))
+    env["COSIM_RUN_ID"] = run_id
     return env
 
 
-def _runner_argv(name: str, run_id: str, endpoint: str) -> list[str]:
-    return [sys.executable, "-m", "cosim.transport.zenoh.runner", "--name", name,
-            "--run-id", run_id, "--connect", endpoint]
+def _runner_argv(name: str) -> list[str]:
+    return [sys.executable, "-m", "cosim.transport.zenoh.runner", "--name", name, "--spec-stdin"]
 
 
 def _params_json(spec: PythonComponentLaunch) -> str:
@@ -70,25 +74,36 @@ def _params_json(spec: PythonComponentLaunch) -> str:
 
 
 class ChildProcess:
-    """One component process.
+    """One component process. Everything but its name reaches it on its stdin (one
+    JSON line): run id, endpoint, the run's credential, class and parameters, so
+    nothing of the run shows on a command line.
 
     Args:
         spec: what the process hosts.
         run_id: the run's id (scopes every key).
         endpoint: the master's listen endpoint the child connects to.
-        extra_args: more runner arguments (a worker passes --zenoh-config).
+        credential: the run's `auth.Credential` (None: a plain session).
+        session_config: a full Zenoh config document replacing the default peer
+            config (a worker's TLS, ACL and credential), or None.
+        handshake_timeout_s: the process ends by itself when no master has asked
+            for its handshake by then (None: the runner's default).
     """
 
-    def __init__(self, spec: PythonComponentLaunch, run_id: str, endpoint: str,
-                 extra_args: Sequence[str] = ()) -> None:
-        argv = [*_runner_argv(spec.name, run_id, endpoint), "--class", spec.class_path,
-                "--params", _params_json(spec), "--period-ticks", str(int(spec.period_ticks)),
-                *extra_args]
-        self._start(spec.name, argv, subprocess.DEVNULL, spec.import_path)
+    def __init__(self, spec: PythonComponentLaunch, run_id: str, endpoint: str, *,
+                 credential: Credential | None = None,
+                 session_config: dict[str, Any] | None = None,
+                 handshake_timeout_s: float | None = None) -> None:
+        self._session = {"run_id": run_id, "connect": endpoint,
+                         "auth": credential.to_json() if credential else None,
+                         "zenoh_config": session_config,
+                         "handshake_timeout_s": handshake_timeout_s}
+        self._start(spec.name, run_id, _runner_argv(spec.name), spec.import_path)
+        self.send_spec(spec)
 
     @classmethod
-    def prestart(cls, name: str, run_id: str, endpoint: str,
-                 preload: str | None = None, import_path: Sequence[str] = ()) -> "ChildProcess":
+    def prestart(cls, name: str, run_id: str, endpoint: str, preload: str | None = None,
+                 import_path: Sequence[str] = (),
+                 credential: Credential | None = None) -> "ChildProcess":
         """Start the process of component `name` before its class, parameters and
         period are known: it loads its modules (numpy, zenoh, `preload`), then
         waits for `send_spec` on its stdin (and exits quietly if stdin closes first).
@@ -99,15 +114,18 @@ class ChildProcess:
             endpoint: the master's listen endpoint the child will connect to.
             preload: a module the component's class probably lives in, or None.
             import_path: folders in front of its import path (the scenario's, the cwd).
+            credential: the run's credential (None: a plain session).
         """
         child = cls.__new__(cls)
-        extra = ["--preload", preload] if preload else []
-        child._start(name, [*_runner_argv(name, run_id, endpoint), "--spec-stdin", *extra],
-                     subprocess.PIPE, import_path)
+        child._session = {"run_id": run_id, "connect": endpoint,
+                          "auth": credential.to_json() if credential else None}
+        child._start(name, run_id,
+                     [*_runner_argv(name), *(["--preload", preload] if preload else [])],
+                     import_path)
         return child
 
     def send_spec(self, spec: PythonComponentLaunch) -> None:
-        """Give a prestarted process its class, parameters and period.
+        """Give the process its class, parameters and period (and its session).
 
         Args:
             spec: the launch description; its name must be this process's.
@@ -115,7 +133,8 @@ class ChildProcess:
         if spec.name != self.name:
             raise ValueError(f"spec of {spec.name!r} sent to the process of {self.name!r}")
         line = json.dumps({"class_path": spec.class_path, "period_ticks": spec.period_ticks,
-                           "parameters": json.loads(_params_json(spec))}).encode() + b"\n"
+                           "parameters": json.loads(_params_json(spec)),
+                           **self._session}).encode() + b"\n"
         if len(line) <= PIPE_SAFE_BYTES:
             self._write_spec(line)
         else:  # the child reads only once its imports are done: do not block the master
@@ -128,11 +147,11 @@ class ChildProcess:
         except (OSError, ValueError):
             pass  # the process died (or was reaped): the handshake reports how
 
-    def _start(self, name: str, argv: list[str], stdin: int,
+    def _start(self, name: str, run_id: str, argv: list[str],
                import_path: Sequence[str] = ()) -> None:
         self.name = name
         self._log = tempfile.TemporaryFile(prefix=f"cosim-{name}-")
-        self.popen = subprocess.Popen(argv, env=_child_env(import_path), stdin=stdin,
+        self.popen = subprocess.Popen(argv, env=_child_env(run_id, import_path), stdin=subprocess.PIPE,
                                       stdout=self._log, stderr=subprocess.STDOUT)
         self.pid = self.popen.pid
 
@@ -144,7 +163,8 @@ class ChildProcess:
         """How the process ended, with the tail of what it printed."""
         code = self.popen.poll()
         if code is None:
-            text = "process vanished from the network (liveliness token lost)"
+            text = STOPPED if process_stopped(self.pid) else (
+                "process stopped or not responding (liveliness token lost while it still runs)")
         elif code < 0:
             text = f"process killed by {signal.Signals(-code).name}"
         else:
@@ -165,6 +185,15 @@ class ChildProcess:
     def close_log(self) -> None:
         """Release the log file."""
         self._log.close()
+
+
+def process_stopped(pid: int) -> bool:
+    """Whether process `pid` is stopped (SIGSTOP, SIGTSTP, a debugger), from /proc."""
+    try:
+        stat_line = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat_line.rpartition(")")[2].split()[:1] in (["T"], ["t"])
 
 
 def reap(children: list[ChildProcess], grace_s: float) -> None:

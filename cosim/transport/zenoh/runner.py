@@ -1,18 +1,23 @@
 """Entry point of one component process, driven in lockstep by the master over Zenoh.
 
-    python -m cosim.transport.zenoh.runner --name controller --run-id R \\
-        --connect tcp/127.0.0.1:7447 --class pkg.module:Class --params '{"k": 1}'
+    python -m cosim.transport.zenoh.runner --name controller --spec-stdin
 
-With `--spec-stdin` instead of `--class/--params`, the process was started
-before the master knew them (`cosim run` starts it while it loads the
-scenario): it loads its modules, then reads them as one JSON line on stdin.
+It loads its modules, then reads one JSON line on stdin: class path,
+parameters, period, and its session (run id, the master's endpoint, the run's
+credential or a worker's full Zenoh config), so nothing but its name is on its
+command line. A master may start it before it knows the class (`cosim run`
+starts it while it loads the scenario). For manual use, `--run-id`,
+`--connect`, `--class` and `--params` give the same on the command line (a
+plain session, without a credential).
 
 The process joins the master's endpoint as a peer, declares a liveliness
 token, builds the component, then answers requests in a blocking receive
 loop in the main thread: HELLO (its port declarations), START, STEP and STOP.
 Exceptions and bad outputs go back to the master as an ERROR reply. The
-process ignores SIGINT (the master decides when it ends) and exits at once
-when the master's liveliness token disappears.
+process ignores SIGINT (the master decides when it ends), exits at once when
+the master's liveliness token disappears, and exits with status 3 when no
+master asks for its handshake within the handshake timeout (an orphan of a
+master that never came).
 """
 
 from __future__ import annotations
@@ -35,11 +40,14 @@ from cosim.errors import UserError
 from cosim.transport.inproc import (ParameterProblem, PythonComponentLaunch, construct_component,
                           describe_exception)
 from cosim.engine.startup import process_age_s
-from cosim.transport.zenoh import config
+from cosim.transport.zenoh import auth, config
+from cosim.transport.zenoh.auth import Credential
 from cosim.transport.zenoh.codec import (CodecError, Kind, Layout, HEADER,
                                          encode_json, ports_to_json)
 
 MASTER_POLL_S = 0.1
+HANDSHAKE_TIMEOUT_S = 30.0
+ORPHAN_EXIT = 3
 _STEP, _OUTPUTS = Kind.STEP, Kind.OUTPUTS
 
 
@@ -51,8 +59,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     """
     parser = argparse.ArgumentParser(prog="cosim.transport.zenoh.runner")
     parser.add_argument("--name", required=True, help="component name in the scenario")
-    parser.add_argument("--run-id", required=True, help="run id scoping every key")
-    parser.add_argument("--connect", required=True, help="the master's Zenoh endpoint")
+    parser.add_argument("--run-id", default="", help="run id scoping every key")
+    parser.add_argument("--connect", default="", help="the master's Zenoh endpoint")
     parser.add_argument("--class", dest="class_path", help="module:Class")
     parser.add_argument("--params", default="{}", help="constructor parameters as JSON")
     parser.add_argument("--period-ticks", type=int, default=1, help="for ps and logs only")
@@ -67,14 +75,20 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if not args.class_path and not args.spec_stdin:
         parser.error("give --class or --spec-stdin")
+    if args.class_path and not (args.run_id and args.connect):
+        parser.error("--class needs --run-id and --connect")
+    args.credential, args.session_config = None, None
+    args.handshake_timeout_s = HANDSHAKE_TIMEOUT_S
     return args
 
 
 class _Server:
     """Answers the master's requests for one component."""
 
-    def __init__(self, launch: PythonComponentLaunch, ages: dict[str, float | None]) -> None:
+    def __init__(self, launch: PythonComponentLaunch, ages: dict[str, float | None],
+                 greeted: threading.Event) -> None:
         self.launch = launch
+        self.greeted = greeted  # set by the first HELLO: a master is there
         self.ages = ages  # start-up marks: seconds since this process started
         self.component: Component | None = None
         self.build_error = ""
@@ -121,6 +135,7 @@ class _Server:
         return None, False
 
     def _hello(self, seq: int) -> bytes:
+        self.greeted.set()
         if self.component is None:
             return encode_json(Kind.ERROR, seq, -1, 0.0, {"cause": self.build_error, "build": True,
                                                      **self.build_detail})
@@ -170,6 +185,28 @@ def _exit_when_master_gone(session: zenoh.Session, run_id: str) -> None:
     threading.Thread(target=poll, name="master-watch", daemon=True).start()
 
 
+def _exit_without_handshake(greeted: threading.Event, timeout_s: float) -> None:
+    """Start a thread that ends this process when no HELLO came within `timeout_s`."""
+
+    def wait() -> None:
+        if not greeted.wait(timeout_s):
+            print(f"no master asked for the handshake within {timeout_s:g} s: exiting",
+                  file=sys.stderr, flush=True)
+            os._exit(ORPHAN_EXIT)
+
+    threading.Thread(target=wait, name="handshake-timeout", daemon=True).start()
+
+
+def _session_config(args: argparse.Namespace) -> zenoh.Config:
+    """The session: a worker's full config, else a peer joining the master with the
+    run's credential (if any)."""
+    if args.session_config:
+        return zenoh.Config.from_json5(json.dumps(args.session_config))
+    if args.zenoh_config:
+        return zenoh.Config.from_json5(args.zenoh_config)
+    return config.client_peer_config(args.connect, auth.security_settings(args.credential))
+
+
 def _launch(args: argparse.Namespace) -> PythonComponentLaunch | None:
     """What to host: from the command line, or from one JSON line on stdin (None at EOF)."""
     if not args.spec_stdin:
@@ -185,6 +222,11 @@ def _launch(args: argparse.Namespace) -> PythonComponentLaunch | None:
     if not line.strip():
         return None
     spec = json.loads(line)
+    args.run_id = config.check_key_chunk(str(spec.get("run_id") or args.run_id), "run_id")
+    args.connect = str(spec.get("connect") or args.connect)
+    args.credential = Credential.from_json(spec.get("auth"))
+    args.session_config = spec.get("zenoh_config")
+    args.handshake_timeout_s = float(spec.get("handshake_timeout_s") or HANDSHAKE_TIMEOUT_S)
     return PythonComponentLaunch(name=args.name, class_path=str(spec["class_path"]),
                                  parameters=dict(spec["parameters"]),
                                  period_ticks=int(spec["period_ticks"]))
@@ -197,17 +239,15 @@ def serve(args: argparse.Namespace) -> int:
     if launch is None:
         return 0  # prestarted, then not needed: the master closed our stdin
     ages["spec"] = process_age_s()  # = "imported" unless prestarted (then: spec received)
-    if args.zenoh_config:
-        conf = zenoh.Config.from_json5(args.zenoh_config)
-    else:
-        conf = config.client_peer_config(args.connect)
-    with zenoh.open(conf) as session:
+    with zenoh.open(_session_config(args)) as session:
         _exit_when_master_gone(session, args.run_id)
+        greeted = threading.Event()
+        _exit_without_handshake(greeted, args.handshake_timeout_s)
         token = session.liveliness().declare_token(config.alive_key(args.run_id, args.name))
         ages["session"] = process_age_s()
         # Build first, then subscribe: the master's HELLO retries sent while a slow
         # constructor runs are not delivered, so they cannot fill the request queue.
-        server = _Server(launch, ages)
+        server = _Server(launch, ages, greeted)
         ages["built"] = process_age_s()
         requests = session.declare_subscriber(config.request_key(args.run_id, args.name))
         publisher = session.declare_publisher(config.reply_key(args.run_id, args.name),

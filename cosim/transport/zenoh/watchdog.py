@@ -95,7 +95,7 @@ class Watchdog:
         seq, _, name = armed
         self._fired_seq = seq
         cause = (f"no reply within the deadline of {self._deadline_s:g} s "
-                 f"(process hung or stopped)")
+                 f"(process stopped or not responding)")
         self._wake(name, Kind.TIMEOUT, seq, name, cause)
 
     def _wait_exit_code(self, child: ChildProcess) -> None:
@@ -107,7 +107,8 @@ class Watchdog:
         if name in self.dead or name in self.finished:
             return
         child = self._children.get(name)
-        cause = child.describe_exit() if child else "process vanished (liveliness token lost)"
+        cause = (child.describe_exit() if child
+                 else "process stopped or not responding (liveliness token lost)")
         self.dead[name] = cause  # first: the master may check it before we read `_armed`
         armed = self._armed
         if armed is not None:
