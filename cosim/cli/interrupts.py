@@ -45,7 +45,27 @@ def quiet_until_started(module_name: str) -> None:
             pass
 
 
+_seen = False  # a Ctrl-C arrived since `restore`
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    global _seen
+    _seen = True
+    raise KeyboardInterrupt
+
+
 def restore() -> None:
-    """Give Ctrl-C back to Python (KeyboardInterrupt) once the command has started."""
-    if signal.getsignal(signal.SIGINT) is _early_interrupt:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+    """Give Ctrl-C back to Python (KeyboardInterrupt) once the command has started.
+
+    The handler also notes the interrupt, so that one swallowed by a library
+    (an import that catches every exception, as some optional-dependency probes
+    do) is still acted on: see `raise_if_swallowed`.
+    """
+    if signal.getsignal(signal.SIGINT) in (_early_interrupt, signal.default_int_handler):
+        signal.signal(signal.SIGINT, _interrupt)
+
+
+def raise_if_swallowed() -> None:
+    """Raise KeyboardInterrupt if a Ctrl-C arrived and nothing acted on it yet."""
+    if _seen:
+        raise KeyboardInterrupt

@@ -79,7 +79,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  observers: Sequence[Any] = (),
                  limits: RunLimits | None = None,
                  fmu_log: bool = False, strict: bool = False,
-                 on_warning: Callable[[str], None] | None = None) -> RunResult:
+                 on_warning: Callable[[str], None] | None = None,
+                 before_tick0: Callable[[], None] | None = None) -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -112,6 +113,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         fmu_log: every FMU's log messages go to run.log (`--fmu-log`).
         strict: interface gaps (`cosim.execution.completeness`) are errors.
         on_warning: prints one interface-gap warning (once each, before tick 0).
+        before_tick0: called once everything is hosted, just before the master starts
+            (`cosim run` raises there a Ctrl-C that a library swallowed during start-up).
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -150,6 +153,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                                fmu_log, page, tuple(observers))
             hosted = _host_components(prepared, remote, clock, out, options)
             _check_gaps(scenario, hosted, strict, on_warning)
+            if before_tick0 is not None:
+                before_tick0()
             return _execute(prepared, hosted, remote, out, transport, run_id, realtime,
                             progress, clock, options)
         except BaseException as exc:  # the announced folder says why the run never started
