@@ -26,9 +26,9 @@ from typing import Any
 
 import fmpy
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Terminated)
-from fmpy.fmi3 import FMU3Slave
+from fmpy.fmi3 import FMU3Model, FMU3Slave
 from fmpy.logging import addLoggerProxy
 
 from cosim.component import Port, Value
@@ -226,17 +226,8 @@ class FmuComponent:
         return {}
 
     def _instantiate(self) -> None:
-        md = self.interface.model_description
-        self._unzipped = fmpy.extract(str(self.path))
-        kwargs = dict(guid=md.guid, unzipDirectory=self._unzipped,
-                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName=self.name)
-        if self.fmi3:
-            self._fmu = FMU3Slave(**kwargs)
-            self._fmu.instantiate(loggingOn=True, logMessage=self.log.fmi3)
-            return
-        self._fmu = FMU2Slave(**kwargs)
-        self._callbacks = _fmi2_callbacks(self.log)
-        self._fmu.instantiate(callbacks=self._callbacks, loggingOn=True)
+        self._unzipped, self._fmu, self._callbacks = instantiate(
+            self.path, self.interface, self.name, self.log, model_exchange=False, logging_on=True)
 
     def _set_real(self, vrs: list[int], values: list[float]) -> None:
         if self.fmi3:
@@ -309,3 +300,32 @@ def _fmi2_callbacks(log: FmuLog) -> fmi2CallbackFunctions:
     callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
     addLoggerProxy(ctypes.byref(callbacks))
     return callbacks
+
+
+def instantiate(path: Path, interface: Any, name: str, log: Any, model_exchange: bool,
+                logging_on: bool) -> tuple[str, Any, Any]:
+    """Extract an FMU and instantiate it through fmpy, its messages going to `log`.
+
+    Args:
+        path: the .fmu file.
+        interface: its FmuInterface (model description, FMI version).
+        name: the instance name (the component's).
+        log: the FmuLog that receives the FMU's messages.
+        model_exchange: instantiate the Model Exchange interface (else co-simulation).
+        logging_on: ask the FMU to log its debug categories too.
+    Returns:
+        (extraction folder, the fmpy FMU object, the FMI 2 callbacks to keep alive or None).
+    """
+    md = interface.model_description
+    unzipped = fmpy.extract(str(path))
+    description = md.modelExchange if model_exchange else md.coSimulation
+    kwargs = dict(guid=md.guid, unzipDirectory=unzipped,
+                  modelIdentifier=description.modelIdentifier, instanceName=name)
+    if md.fmiVersion.startswith("3"):
+        fmu = (FMU3Model if model_exchange else FMU3Slave)(**kwargs)
+        fmu.instantiate(loggingOn=logging_on, logMessage=log.fmi3)
+        return unzipped, fmu, None
+    fmu = (FMU2Model if model_exchange else FMU2Slave)(**kwargs)
+    callbacks = _fmi2_callbacks(log)
+    fmu.instantiate(callbacks=callbacks, loggingOn=logging_on)
+    return unzipped, fmu, callbacks

@@ -25,13 +25,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import fmpy
-from fmpy.fmi2 import FMU2Model
-from fmpy.fmi3 import FMU3Model
 
 from cosim.component import Port, Value
 from cosim.errors import ComponentFailure, FmuInterfaceError
-from cosim.fmu.host import FmuLog, _fmi2_callbacks
+from cosim.fmu.host import FmuLog, instantiate
 from cosim.fmu.solvers import make_solver
 
 
@@ -177,17 +174,8 @@ class ModelExchangeComponent:
         self._next_event = next_time if defined else None
 
     def _instantiate(self) -> None:
-        md = self.interface.model_description
-        self._unzipped = fmpy.extract(str(self.path))
-        kwargs = dict(guid=md.guid, unzipDirectory=self._unzipped,
-                      modelIdentifier=md.modelExchange.modelIdentifier, instanceName=self.name)
-        if self.fmi3:
-            self._fmu = FMU3Model(**kwargs)
-            self._fmu.instantiate(loggingOn=False, logMessage=self.log.fmi3)
-            return
-        self._fmu = FMU2Model(**kwargs)
-        self._callbacks = _fmi2_callbacks(self.log)
-        self._fmu.instantiate(callbacks=self._callbacks, loggingOn=False)
+        self._unzipped, self._fmu, self._callbacks = instantiate(
+            self.path, self.interface, self.name, self.log, model_exchange=True, logging_on=False)
 
     def _set(self, vrs: list[int], values: list[float]) -> None:
         if vrs:
