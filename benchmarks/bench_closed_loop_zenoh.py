@@ -201,7 +201,7 @@ def across_namespaces(seconds: float, repeats: int, mode: str) -> dict[str, floa
     lines = [l for l in done.stdout.splitlines() if l.startswith("SAMPLES ")]
     if done.returncode != 0 or not lines:
         raise SystemExit(f"across network namespaces failed: {done.stderr.strip()[-1500:]}")
-    print(f"across network namespaces (master in one, controller, planner and echo in another, veth + bridge):")
+    print("across network namespaces (master in one, controller, planner and echo in another, veth + bridge):")
     return summarize(json.loads(lines[-1][len("SAMPLES "):]), "across namespaces")
 
 
