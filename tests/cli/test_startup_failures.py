@@ -55,13 +55,19 @@ def test_error_before_the_folder_is_made_announces_no_folder(tmp_path, capsys):
     assert captured.err.startswith("error: ")
 
 
+def _interactive_sigint() -> None:
+    """In the child: Ctrl-C as in a terminal, even when the suite itself was started in the
+    background (a non-interactive shell starts background jobs with SIGINT ignored)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _interrupt_run(out: Path, delay_s: float) -> tuple[subprocess.CompletedProcess, list[str]]:
     """Start `cosim run` (zenoh, a long duration), SIGINT it after delay_s;
     return its outcome and what is left in its process session."""
     proc = subprocess.Popen(
         [str(COSIM), "run", str(LANE_CHANGE), "--out", str(out), "--no-figures",
          "--set", "duration=600"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, start_new_session=True)
+        text=True, start_new_session=True, preexec_fn=_interactive_sigint)
     time.sleep(delay_s)
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=60)
