@@ -248,9 +248,6 @@ class Recorder:
         table.rows += 1
         table.count[0] = table.rows
 
-    def flush(self) -> None:
-        """Nothing to do: every row is in the kernel's page cache once written (kept for callers)."""
-
     def _failure(self, exc: Exception, tick: int) -> RunFolderError:
         """Remember the first folder failure (the recorder writes nothing more) and return it."""
         if self.failed is None:

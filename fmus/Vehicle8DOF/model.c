@@ -190,18 +190,27 @@ static void tyre(const Par *p, int i, double fz, double mu, double vxw, double v
     *kx = scale * dfx_df0x * p->ck * inv_den;
 }
 
+/* Velocity of wheel i's contact point in the wheel's own axes (the front wheels are steered). */
+static void wheel_velocity(const Par *p, const In *in, const State *s, int i,
+                           double *vxw, double *vyw)
+{
+    double vxc = s->vx - s->r * p->py[i];
+    double vyc = s->vy + s->r * p->px[i];
+    *vxw = vxc;
+    *vyw = vyc;
+    if (i < 2) {
+        *vxw = vxc * in->cd + vyc * in->sd;
+        *vyw = -vxc * in->sd + vyc * in->cd;
+    }
+}
+
 /* Tyre forces at the current state with the wheel spins om[]. */
 static void tyre_forces(const Par *p, const In *in, const State *s, Forces *f)
 {
     wheel_loads(p, s, f->fz);
     for (int i = 0; i < N_WHEELS; ++i) {
-        double vxc = s->vx - s->r * p->py[i];
-        double vyc = s->vy + s->r * p->px[i];
-        double vxw = vxc, vyw = vyc;
-        if (i < 2) {
-            vxw = vxc * in->cd + vyc * in->sd;
-            vyw = -vxc * in->sd + vyc * in->cd;
-        }
+        double vxw, vyw;
+        wheel_velocity(p, in, s, i, &vxw, &vyw);
         tyre(p, i, f->fz[i], in->mu, vxw, vyw, p->rw * s->om[i], &f->fx[i], &f->fy[i], &f->kx[i]);
     }
 }
@@ -279,13 +288,8 @@ static void pacejka_forces(const Par *p, const In *in, State *s, Forces *f, doub
 {
     wheel_loads(p, s, f->fz);
     for (int i = 0; i < N_WHEELS; ++i) {
-        double vxc = s->vx - s->r * p->py[i];
-        double vyc = s->vy + s->r * p->px[i];
-        double vxw = vxc, vyw = vyc;
-        if (i < 2) {
-            vxw = vxc * in->cd + vyc * in->sd;
-            vyw = -vxc * in->sd + vyc * in->cd;
-        }
+        double vxw, vyw;
+        wheel_velocity(p, in, s, i, &vxw, &vyw);
         double ve = fmax(fabs(vxw), p->v_eps);
         double sy = relax_length(p, p->sigma_y, vxw);
         if (dt > 0.0) {
