@@ -53,6 +53,7 @@ from cosim.engine.master import Master  # noqa: E402
 from cosim.execution.prepare import prepare_run  # noqa: E402
 from cosim.scenario.loader import load_scenario  # noqa: E402
 from cosim.engine.wiring import resolve_wiring  # noqa: E402
+from cosim.execution import fmu_hosting  # noqa: E402
 
 TARGET_RTF = 500.0
 CLOCKS = {"cpu": time.thread_time, "wall": time.perf_counter}
@@ -162,7 +163,7 @@ def build_master(prepared, hosted: dict) -> Master:
     unsupported = {n: c.interface.unsupported for n, c in hosted.items() if isinstance(c, FmuComponent)}
     edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()}, unsupported)
     return Master(hosted, edges, scenario.tick, scenario.total_ticks,
-                  scenario.start_time or 0.0)  # the built-in FMUs start at 0
+                  fmu_hosting.start_time(scenario, prepared.fmus))
 
 
 def run_once(prepared, timed: bool) -> tuple[float, dict[str, tuple[float, int]]]:

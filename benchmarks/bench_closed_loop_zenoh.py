@@ -63,6 +63,7 @@ def _master(prepared, python_hosts: dict):
     """The master over the FMU hosts and `python_hosts`, wired as the scenario says, no observers."""
     from cosim.engine.master import Master
     from cosim.engine.wiring import resolve_wiring
+    from cosim.execution import fmu_hosting
     from cosim.fmu.host import FmuComponent
 
     hosted = {p.name: FmuComponent(p.name, p.path, p.interface, p.parameters, p.period_ticks)
@@ -73,7 +74,7 @@ def _master(prepared, python_hosts: dict):
     unsupported = {n: c.interface.unsupported for n, c in hosted.items() if isinstance(c, FmuComponent)}
     edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()}, unsupported)
     return Master(hosted, edges, scenario.tick, scenario.total_ticks,
-                  scenario.start_time or 0.0)  # the built-in FMUs start at 0
+                  fmu_hosting.start_time(scenario, prepared.fmus))
 
 
 def _timed_loop(master) -> tuple[float, list[float]]:

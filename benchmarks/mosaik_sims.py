@@ -51,7 +51,9 @@ class CosimSim(mosaik_api_v3.Simulator):
     def init(self, sid, time_resolution=1.0, scenario="", overrides=(), name="", as_lists=False,
              record=(), record_to=""):
         prepared, self.host = _host(scenario, list(overrides), name)
-        self.t0, self.tick = prepared.scenario.start_time or 0.0, prepared.scenario.tick
+        from cosim.execution.fmu_hosting import start_time
+
+        self.t0, self.tick = start_time(prepared.scenario, prepared.fmus), prepared.scenario.tick
         self.period = int(self.host.period_ticks)
         self.as_lists, self.record, self.record_to = as_lists, list(record), record_to
         self.held = {p.name: p.zero() for p in self.host.inputs}
