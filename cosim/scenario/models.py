@@ -57,16 +57,7 @@ class Uncertainty(BaseModel):
 
 
 class SolverSpec(BaseModel):
-    """How the master integrates a Model Exchange FMU.
-
-    Attributes:
-        method: "cvode" (fmpy's SUNDIALS CVode, BDF, variable step, state events
-            located by root finding), "rk4" or "euler" (fixed step).
-        rtol: relative tolerance of cvode (fmpy's default).
-        atol: absolute tolerance of cvode (None: rtol times each state's nominal, as fmpy).
-        max_step: cvode's largest step (None: duration / 50, as fmpy); the
-            step of rk4 and euler (None: the component's period).
-    """
+    """How the master integrates a Model Exchange FMU."""
 
     model_config = STRICT
     method: Literal["cvode", "rk4", "euler"] = Field("cvode", description=(
@@ -81,24 +72,7 @@ class SolverSpec(BaseModel):
 
 
 class FmuSpec(BaseModel):
-    """A component that is an FMU (built-in name or path to a .fmu).
-
-    Attributes:
-        fmu: built-in name (see BUILTIN_FMUS) or path, relative to the YAML file.
-        period: seconds between two steps (None: every master tick).
-        parameters: parameter start values by canonical name.
-        uncertainty: per-parameter scale/offset applied on top of `parameters`.
-        variables: canonical name -> the FMU's variable name (foreign FMUs).
-        host: "local" or the name of a worker.
-        deadline: seconds an FMI call may take (None: the run's `--deadline`).
-        isolate: run the FMU in a local process of its own (its crash or
-            hang then cannot touch the master).
-        log: send the FMU's log messages to run.log (warnings and errors
-            also to the terminal).
-        interface: "co_simulation" or "model_exchange" (None: co-simulation
-            when the FMU offers it, else model exchange).
-        solver: the integrator of a Model Exchange FMU (None: cvode defaults).
-    """
+    """A component that is an FMU (built-in name or path to a .fmu)."""
 
     model_config = STRICT
     fmu: str = Field(min_length=1, description=(
@@ -127,16 +101,7 @@ class FmuSpec(BaseModel):
 
 
 class PythonSpec(BaseModel):
-    """A component that is a Python class (a cosim.component.Component subclass).
-
-    Attributes:
-        python: "package.module:Class".
-        period: seconds between two steps (None: the class's default_period,
-            else every master tick).
-        parameters: keyword arguments of the class.
-        host: "local" or the name of a worker.
-        deadline: seconds a step may take in-process (None: the run's `--deadline`).
-    """
+    """A component that is a Python class (a cosim.component.Component subclass)."""
 
     model_config = STRICT
     python: str = Field(pattern=PYTHON_CLASS, description=(
@@ -194,14 +159,7 @@ def _parse_connection(value: Any) -> Any:
 
 class Connection(BaseModel):
     """One connection: `component.port -> component.port`, or the short form
-    `component -> component` (every output feeding the input of the same name).
-
-    Attributes:
-        src, dst: "component" or "component.port" (YAML keys `from` and `to`).
-        delay: ticks of delay on this edge (1 breaks a feedback loop).
-        scale, offset: a linear transformation, the input reads scale * x + offset
-            (each applied only where given; scalar signals, a.x -> b.y form only).
-    """
+    `component -> component` (every output feeding the input of the same name)."""
 
     model_config = ConfigDict(extra="forbid", validate_by_name=True, validate_by_alias=True,
                               serialize_by_alias=True, strict=True)

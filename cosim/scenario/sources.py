@@ -19,13 +19,7 @@ Point = Annotated[tuple[float, float], Field(strict=False)]
 
 
 class SourceBase(BaseModel):
-    """Fields every source has.
-
-    Attributes:
-        period: seconds between two steps (None: every master tick).
-        host: "local" or the name of a worker that runs it.
-        unit: unit string of the output `value` ("" matches any unit).
-    """
+    """Fields every source has."""
 
     model_config = STRICT
     period: PositiveFloat | None = Field(None, description=(
@@ -80,16 +74,7 @@ class GustSource(SourceBase):
 
 
 class TableSource(SourceBase):
-    """A value tabulated over time or over travelled distance.
-
-    Attributes:
-        over: "time" (abscissa t in s) or "distance" (abscissa in m travelled
-            by the point connected to inputs x, y).
-        points: [[abscissa, value], ...], abscissas strictly increasing;
-            the first and last values hold outside the table.
-        interpolation: "linear", or "previous" (value of the last point at or
-            before the abscissa).
-    """
+    """A value tabulated over time or over travelled distance."""
 
     kind: Literal["table"] = Field(description="a value tabulated over time or over "
                                                "travelled distance")
