@@ -110,20 +110,38 @@ def _is_tag(key: str | int) -> bool:
 
 
 def _message(errors: list[Any], class_path: str, model: type[BaseModel]) -> str:
-    """The text of a parameter's problem, naming the class and showing the value."""
+    """The text of a value's problem, in the words of the constructor-time check
+    (cosim.transport.parameters): "expected a number > 0, got -1"."""
     first = errors[0]
     key = first["loc"][-1] if first["loc"] else ""
     if first["type"] == "extra_forbidden":
         if len(first["loc"]) > 1:
             return f"unknown field {key!r}"
         known = list(model.model_fields)
-        return (f"unknown parameter {key!r} of {class_path}{did_you_mean(str(key), known)}; "
+        return (f"unknown parameter {key!r}{did_you_mean(str(key), known)}; "
                 f"known: {', '.join(known)}")
     if first["type"] == "missing":
         return f"parameter {key!r} of {class_path} is required"
-    text = " or ".join(dict.fromkeys(error["msg"][:1].lower() + error["msg"][1:]
-                                     for error in errors))
-    return f"{text}, got {_shown(first['input'])} ({class_path})"
+    wanted = " or ".join(dict.fromkeys(_wanted(error) for error in errors))
+    return f"expected {wanted}, got {_shown(first['input'])}"
+
+
+_WORDS = {"float_type": "a number", "finite_number": "a finite number", "int_type": "an integer",
+          "int_from_float": "an integer", "bool_type": "true or false", "string_type": "a string",
+          "list_type": "a list", "dict_type": "a mapping", "model_type": "a mapping"}
+_BOUNDS = {"greater_than": ("gt", ">"), "greater_than_equal": ("ge", ">="),
+           "less_than": ("lt", "<"), "less_than_equal": ("le", "<=")}
+
+
+def _wanted(error: Any) -> str:
+    """What a pydantic error says the value should be, in words."""
+    kind, ctx = error["type"], error.get("ctx", {})
+    if kind in _BOUNDS:
+        name, sign = _BOUNDS[kind]
+        return f"a number {sign} {ctx[name]:g}"
+    if kind == "literal_error":
+        return f"one of {ctx['expected']}"
+    return _WORDS.get(kind, error["msg"][:1].lower() + error["msg"][1:])
 
 
 def _shown(value: Any) -> str:
