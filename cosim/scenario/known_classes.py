@@ -169,7 +169,9 @@ def describe_parameters(schema: dict[str, Any]) -> None:
             defs[name] = definition
         rules.append({"if": {"properties": {"python": {"const": class_path}},
                              "required": ["python"]},
-                      "then": {"properties": {"parameters": {"$ref": f"#/$defs/{model.__name__}"}}}})
+                      "then": {"properties": {"parameters": {
+                          "$ref": f"#/$defs/{model.__name__}",
+                          "description": f"keyword arguments of {class_path}"}}}})
     python_spec = defs["PythonSpec"]
     python_spec["allOf"] = rules
     python_spec["properties"]["python"]["examples"] = list(SHIPPED_CLASSES)
