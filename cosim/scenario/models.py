@@ -65,7 +65,8 @@ class SolverSpec(BaseModel):
         "'rk4' or 'euler' (fixed step)"))
     rtol: PositiveFloat = Field(1e-5, description="relative tolerance of cvode, 1")
     atol: PositiveFloat | None = Field(None, description=(
-        "absolute tolerance of cvode, in each state's unit (null: rtol times each state's nominal)"))
+        "absolute tolerance of cvode, in each state's unit (null: rtol times each state's "
+        "nominal)"))
     max_step: PositiveFloat | None = Field(None, description=(
         "cvode's largest step, or the step of rk4 and euler, s (null: duration / 50 for cvode, "
         "the component's period for rk4 and euler)"))
