@@ -22,6 +22,7 @@ from cosim.distributed.worker import Worker
 from cosim.distributed.client import DistributedComponents, list_workers, master_endpoint
 from cosim.distributed.protocol import encode, module_allowed
 from cosim.transport.zenoh.config import free_tcp_endpoint
+from tests.cli.test_parameter_errors import USER_CLASS
 from tests.helpers.components import bits, launch, run_processes
 from tests.helpers.credentials import auth_deploy_file, shared_auth
 from tests.helpers.paths import REPO_ROOT
@@ -272,18 +273,7 @@ def test_cli_run_with_place_matches_inproc_and_workers_lists(worker, tmp_path, c
 
 # a user's class: its parameters are checked by its constructor, here on the worker
 # (a shipped class's are refused at load already, cosim.scenario.known_classes)
-PARAMETERS = """\
-name: params
-duration: 0.1
-tick: 0.01
-components:
-  controller:
-    python: tests.helpers.components:{cls}
-    host: w1
-    parameters:
-      # the next one is wrong
-      {bad}
-"""
+PARAMETERS = USER_CLASS.replace("    parameters:", "    host: w1\n    parameters:")
 
 
 def _record_starts(worker, monkeypatch) -> list[str]:
@@ -315,7 +305,7 @@ def test_parameter_rejected_on_worker_names_its_yaml_line(worker, tmp_path, caps
     worker.worker.allow = ("tests.helpers.",)
     started = _record_starts(worker, monkeypatch)
     path = tmp_path / "params.yaml"
-    path.write_text(PARAMETERS.format(cls=cls, bad=bad))
+    path.write_text(PARAMETERS.format(cls=cls, good="# the next one is wrong", bad=bad))
     known = ", ".join(inspect.signature(getattr(components, cls)).parameters)
     expected = f"{path}:10: " + located.format(known=known)
     out = tmp_path / "run"
