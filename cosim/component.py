@@ -72,11 +72,18 @@ class Component:
     Class attributes:
         default_period: period in seconds used when the scenario names none
             (None: every master tick).
+        parameters_model: optional pydantic model of the constructor's keyword
+            arguments (extra fields forbidden, each described with unit, default
+            and range). For the shipped classes (cosim.scenario.known_classes)
+            the scenario loader validates `parameters:` with it, and the
+            scenario JSON schema describes them; None: checked against the
+            constructor's annotations when the component is constructed.
     """
 
     inputs: tuple[Port, ...] = ()
     outputs: tuple[Port, ...] = ()
     default_period: ClassVar[float | None] = None
+    parameters_model: ClassVar[type | None] = None
 
     def initialize(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Set up state at t0 from the initial inputs and return the initial outputs."""

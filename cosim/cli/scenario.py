@@ -3,7 +3,8 @@ the JSON schema; the shipped scenarios."""
 
 from __future__ import annotations
 
-import json
+from pathlib import Path
+from typing import Optional
 
 import typer
 
@@ -39,11 +40,25 @@ def validate(file: str = typer.Argument(..., help="scenario YAML file, or a ship
           f"connections; step order: {', '.join(checked['order'])})")
 
 
-def schema() -> None:
-    """Print the scenario JSON schema (for editors)."""
-    from cosim.scenario.loader import json_schema
+def schema(out: Optional[Path] = typer.Option(
+        None, "--out", help="write the schema to this file instead of printing it")) -> None:
+    """Print (or write) the scenario JSON schema, for editors with a YAML language server.
 
-    print(json.dumps(json_schema(), indent=2))
+    The shipped scenarios' first line points at scenarios/scenario.schema.json, this schema.
+    Example: cosim schema --out 'scenario.schema.json'
+    """
+    from cosim.scenario.schema import schema_text
+
+    text = schema_text()
+    if out is None:
+        print(text, end="")
+        return
+    try:
+        out.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise user_error_exit(UserError(
+            f"{out}: cannot write the schema: {exc.strerror or exc}")) from None
+    print(f"wrote {out}")
 
 
 def scenarios() -> None:

@@ -2,7 +2,8 @@
 
 The pydantic schema checks each field on its own; these checks relate fields:
 names are identifiers and unique across components and sources, periods and
-the duration are whole multiples of the tick, and FMU files exist. They run on
+the duration are whole multiples of the tick, FMU files exist, and the
+`parameters:` of a shipped class fit its parameter model (cosim.scenario.known_classes). They run on
 the raw document and skip whatever the schema already rejects, so that one
 load reports the schema's problems and these together.
 
@@ -19,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.resources import builtin_fmu_names
+from cosim.scenario.known_classes import parameter_problems
 
 #: Built-in plant FMUs, built by the platform on demand: discovered from the folders of fmus/.
 BUILTIN_FMUS: tuple[str, ...] = builtin_fmu_names()
@@ -83,6 +85,8 @@ def semantic_problems(data: Any, base_dir: Path | None) -> list[tuple[Loc, str]]
             if isinstance(spec, dict):
                 problems += _period_problems((section, str(name)), spec, tick)
                 problems += _fmu_problems((section, str(name)), spec, base_dir)
+                if section == "components":
+                    problems += parameter_problems((section, str(name)), spec)
     return problems
 
 

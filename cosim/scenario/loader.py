@@ -55,6 +55,7 @@ from cosim.errors import Problem, ScenarioError, did_you_mean
 from cosim.scenario.checks import BUILTIN_FMUS, IDENTIFIER, semantic_problems, whole_ticks
 from cosim.scenario.models import (ComponentSpec, Connection, FmuSpec, PythonSpec,
                                    RecordSpec, Scenario, Uncertainty)
+from cosim.scenario.schema import json_schema
 from cosim.scenario.systems import is_ssp, merge_system, ssp_scenario
 from cosim.scenario.sources import (SOURCE_CLASSES, SOURCE_KIND_ERROR, SOURCE_MODELS,
                                     ConstantSource, GustSource, RampSource, SourceSpec,
@@ -290,10 +291,3 @@ def _apply_one(data: Any, text: str, lines: LineMap) -> str | None:
             node = node[index]
     lines.detached[created or tuple(loc)] = text + note
     return None
-
-
-def json_schema() -> dict[str, Any]:
-    """The JSON schema of scenario files (for editors), as a dict."""
-    schema = Scenario.model_json_schema(mode="validation")
-    schema["title"] = "cosim scenario"
-    return schema

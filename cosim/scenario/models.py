@@ -48,8 +48,8 @@ class Uncertainty(BaseModel):
     """Plant parameter error: the plant gets value * scale + offset."""
 
     model_config = STRICT
-    scale: float = 1.0
-    offset: float = 0.0
+    scale: float = Field(1.0, description="factor on the nominal value, 1")
+    offset: float = Field(0.0, description="added after the factor, in the parameter's own unit")
 
     def apply(self, value: float) -> float:
         """The perturbed value of a nominal parameter value."""
@@ -57,76 +57,66 @@ class Uncertainty(BaseModel):
 
 
 class SolverSpec(BaseModel):
-    """How the master integrates a Model Exchange FMU.
-
-    Attributes:
-        method: "cvode" (fmpy's SUNDIALS CVode, BDF, variable step, state events
-            located by root finding), "rk4" or "euler" (fixed step).
-        rtol: relative tolerance of cvode (fmpy's default).
-        atol: absolute tolerance of cvode (None: rtol times each state's nominal, as fmpy).
-        max_step: cvode's largest step (None: duration / 50, as fmpy); the
-            step of rk4 and euler (None: the component's period).
-    """
+    """How the master integrates a Model Exchange FMU."""
 
     model_config = STRICT
-    method: Literal["cvode", "rk4", "euler"] = "cvode"
-    rtol: PositiveFloat = 1e-5
-    atol: PositiveFloat | None = None
-    max_step: PositiveFloat | None = None
+    method: Literal["cvode", "rk4", "euler"] = Field("cvode", description=(
+        "integrator: 'cvode' (SUNDIALS CVode, BDF, variable step, state events located), "
+        "'rk4' or 'euler' (fixed step)"))
+    rtol: PositiveFloat = Field(1e-5, description="relative tolerance of cvode, 1")
+    atol: PositiveFloat | None = Field(None, description=(
+        "absolute tolerance of cvode, in each state's unit (null: rtol times each state's "
+        "nominal)"))
+    max_step: PositiveFloat | None = Field(None, description=(
+        "cvode's largest step, or the step of rk4 and euler, s (null: duration / 50 for cvode, "
+        "the component's period for rk4 and euler)"))
 
 
 class FmuSpec(BaseModel):
-    """A component that is an FMU (built-in name or path to a .fmu).
-
-    Attributes:
-        fmu: built-in name (see BUILTIN_FMUS) or path, relative to the YAML file.
-        period: seconds between two steps (None: every master tick).
-        parameters: parameter start values by canonical name.
-        uncertainty: per-parameter scale/offset applied on top of `parameters`.
-        variables: canonical name -> the FMU's variable name (foreign FMUs).
-        host: "local" or the name of a worker.
-        deadline: seconds an FMI call may take (None: the run's `--deadline`).
-        isolate: run the FMU in a local process of its own (its crash or
-            hang then cannot touch the master).
-        log: send the FMU's log messages to run.log (warnings and errors
-            also to the terminal).
-        interface: "co_simulation" or "model_exchange" (None: co-simulation
-            when the FMU offers it, else model exchange).
-        solver: the integrator of a Model Exchange FMU (None: cvode defaults).
-    """
+    """A component that is an FMU (built-in name or path to a .fmu)."""
 
     model_config = STRICT
-    fmu: str = Field(min_length=1)
-    period: PositiveFloat | None = None
-    parameters: dict[str, FiniteFloat] = {}
-    uncertainty: dict[str, Uncertainty] = {}
-    variables: dict[str, str] = {}
-    host: str = Field("local", min_length=1)
-    deadline: PositiveFloat | None = None
-    isolate: bool = False
-    log: bool = False
-    interface: Literal["co_simulation", "model_exchange"] | None = None
-    solver: SolverSpec | None = None
+    fmu: str = Field(min_length=1, description=(
+        "a built-in model's name (a folder of fmus/, e.g. Vehicle8DOF, Bicycle) or the path to "
+        "a .fmu, relative to the scenario file"))
+    period: PositiveFloat | None = Field(None, description=(
+        "time between two steps, a whole multiple of tick, s (null: every master tick)"))
+    parameters: dict[str, FiniteFloat] = Field({}, description=(
+        "parameter start values by canonical name, each in the FMU variable's unit"))
+    uncertainty: dict[str, Uncertainty] = Field({}, description=(
+        "model error per parameter: the plant gets value * scale + offset"))
+    variables: dict[str, str] = Field({}, description=(
+        "canonical name -> the FMU's own variable name (for a foreign FMU)"))
+    host: str = Field("local", min_length=1, description="'local' or the name of a worker "
+                                                         "that runs the FMU")
+    deadline: PositiveFloat | None = Field(None, description=(
+        "time an FMI call may take, wall clock s (null: the run's --deadline)"))
+    isolate: bool = Field(False, description=(
+        "run the FMU in a local process of its own, so its crash or hang cannot touch the master"))
+    log: bool = Field(False, description=(
+        "send the FMU's log messages to run.log (warnings and errors also to the terminal)"))
+    interface: Literal["co_simulation", "model_exchange"] | None = Field(None, description=(
+        "FMI interface to use (null: co-simulation when the FMU offers it, else model exchange)"))
+    solver: SolverSpec | None = Field(None, description=(
+        "integrator of a Model Exchange FMU (null: cvode with its defaults)"))
 
 
 class PythonSpec(BaseModel):
-    """A component that is a Python class (a cosim.component.Component subclass).
-
-    Attributes:
-        python: "package.module:Class".
-        period: seconds between two steps (None: the class's default_period,
-            else every master tick).
-        parameters: keyword arguments of the class.
-        host: "local" or the name of a worker.
-        deadline: seconds a step may take in-process (None: the run's `--deadline`).
-    """
+    """A component that is a Python class (a cosim.component.Component subclass)."""
 
     model_config = STRICT
-    python: str = Field(pattern=PYTHON_CLASS)
-    period: PositiveFloat | None = None
-    parameters: dict[str, Any] = {}
-    host: str = Field("local", min_length=1)
-    deadline: PositiveFloat | None = None
+    python: str = Field(pattern=PYTHON_CLASS, description=(
+        "the component class, 'package.module:Class' (a cosim.component.Component subclass)"))
+    period: PositiveFloat | None = Field(None, description=(
+        "time between two steps, a whole multiple of tick, s (null: the class's default_period, "
+        "else every master tick)"))
+    parameters: dict[str, Any] = Field({}, description=(
+        "keyword arguments of the class; for a shipped class, typed and described by its "
+        "parameter model"))
+    host: str = Field("local", min_length=1, description="'local' or the name of a worker "
+                                                         "that runs the component")
+    deadline: PositiveFloat | None = Field(None, description=(
+        "time a step may take in-process, wall clock s (null: the run's --deadline)"))
 
 
 def _component_tag(value: Any) -> str | None:
@@ -170,22 +160,21 @@ def _parse_connection(value: Any) -> Any:
 
 class Connection(BaseModel):
     """One connection: `component.port -> component.port`, or the short form
-    `component -> component` (every output feeding the input of the same name).
-
-    Attributes:
-        src, dst: "component" or "component.port" (YAML keys `from` and `to`).
-        delay: ticks of delay on this edge (1 breaks a feedback loop).
-        scale, offset: a linear transformation, the input reads scale * x + offset
-            (each applied only where given; scalar signals, a.x -> b.y form only).
-    """
+    `component -> component` (every output feeding the input of the same name)."""
 
     model_config = ConfigDict(extra="forbid", validate_by_name=True, validate_by_alias=True,
                               serialize_by_alias=True, strict=True)
-    src: str = Field(alias="from", pattern=ENDPOINT)
-    dst: str = Field(alias="to", pattern=ENDPOINT)
-    delay: int = Field(0, ge=0, le=1)  # a feedback edge needs one tick; the master takes no more
-    scale: FiniteFloat | None = None
-    offset: FiniteFloat | None = None
+    src: str = Field(alias="from", pattern=ENDPOINT, description=(
+        "source: 'component' (every output) or 'component.port'"))
+    dst: str = Field(alias="to", pattern=ENDPOINT, description=(
+        "destination: 'component' (the inputs named as the source's outputs) or 'component.port'"))
+    # a feedback edge needs one tick; the master takes no more
+    delay: int = Field(0, ge=0, le=1, description="master ticks of delay on this edge (1 breaks "
+                                                  "a feedback loop), ticks")
+    scale: FiniteFloat | None = Field(None, description=(
+        "the input reads scale * x (+ offset), 1 (null: 1; a.x -> b.y form, scalar signals)"))
+    offset: FiniteFloat | None = Field(None, description=(
+        "added after scale, in the input's unit (null: 0; a.x -> b.y form, scalar signals)"))
 
     @model_validator(mode="before")
     @classmethod
@@ -243,9 +232,12 @@ class RecordSpec(BaseModel):
     """Which signals to record: fnmatch globs over "component.signal"; mcap: also write run.mcap."""
 
     model_config = STRICT
-    include: list[str] = ["*"]
-    exclude: list[str] = []
-    mcap: bool = False   # run.mcap beside signals.csv after the run (cosim.foxglove.mcap_export)
+    include: list[str] = Field(["*"], description=(
+        "fnmatch globs over 'component.signal' of the signals to record"))
+    exclude: list[str] = Field([], description="globs of signals not to record, "
+                                               "though included")
+    mcap: bool = Field(False, description=(   # cosim.foxglove.mcap_export
+        "also write run.mcap (for Foxglove) beside signals.csv after the run"))
 
     def selects(self, signal: str) -> bool:
         """True if `signal` ("component.signal") matches an include and no exclude glob."""
@@ -257,31 +249,44 @@ class MetricsSpec(BaseModel):
     """Settings of the run metrics (cosim.analysis.metrics): transient to skip, cones, body size."""
 
     model_config = STRICT
-    skip_s: NonNegativeFloat = 0.0
-    cones: list[XYPair] = []
-    vehicle_length: PositiveFloat = 4.5
-    vehicle_width: PositiveFloat = 1.8
-    vehicle_front: PositiveFloat | None = None   # CG to front bumper, m; None: half the length
-    figures: Literal["track", "manoeuvre", "following"] | None = None   # None: chosen from the run
+    skip_s: NonNegativeFloat = Field(0.0, description="initial transient left out of the "
+                                                      "metrics, s")
+    cones: list[XYPair] = Field([], description="cone positions [x, y] in world axes, m "
+                                                "(cone strikes are counted)")
+    vehicle_length: PositiveFloat = Field(4.5, description="body length, m")
+    vehicle_width: PositiveFloat = Field(1.8, description="body width, m")
+    vehicle_front: PositiveFloat | None = Field(None, description=(
+        "CG to front bumper, m (null: half the length)"))
+    figures: Literal["track", "manoeuvre", "following"] | None = Field(None, description=(
+        "figure layout of the run (null: chosen from the run)"))
 
 
 class Scenario(BaseModel):
     """A validated scenario; see the module docstring and cosim.scenario.loader for the format."""
 
     model_config = STRICT
-    name: Annotated[str, Field(min_length=1), AfterValidator(_run_name)]
-    description: str = ""
-    duration: PositiveFloat
-    tick: PositiveFloat
-    start_time: FiniteFloat | None = None  # None: the FMUs' DefaultExperiment, else 0
-    # an .ssp whose FMU components and connections the loader merges in (cosim.scenario.ssp);
+    name: Annotated[str, Field(min_length=1, description=(
+        "the run's name, also its results folder's: letters, digits, '-', '_', '.' "
+        "(at most 100)")), AfterValidator(_run_name)]
+    description: str = Field("", description="what the scenario shows, one line or a few")
+    duration: PositiveFloat = Field(description="simulated time, a whole number of ticks, s")
+    tick: PositiveFloat = Field(description="the master's base step; every period is a whole "
+                                            "multiple of it, s")
+    start_time: FiniteFloat | None = Field(None, description=(
+        "simulation time at tick 0, s (null: the FMUs' DefaultExperiment start, else 0)"))
     # None once loaded, so that a loaded scenario's dump stands on its own
-    system: str | None = None
-    components: dict[str, ComponentSpec] = Field(min_length=1)
-    sources: dict[str, SourceSpec] = {}
-    connections: list[ConnectionEntry] = []
-    record: RecordSpec = RecordSpec()
-    metrics: MetricsSpec = MetricsSpec()
+    system: str | None = Field(None, description=(
+        "an .ssp (path relative to this file) whose FMU components and connections are merged "
+        "in first (cosim.scenario.ssp)"))
+    components: dict[str, ComponentSpec] = Field(min_length=1, description=(
+        "the components by name (identifiers): each an FMU (fmu:) or a Python class (python:)"))
+    sources: dict[str, SourceSpec] = Field({}, description=(
+        "signal sources by name: each a component with one output 'value', of a kind"))
+    connections: list[ConnectionEntry] = Field([], description=(
+        "'a.x -> b.y', 'a -> b' (ports matched by name) or {from, to, delay, scale, offset}"))
+    record: RecordSpec = Field(RecordSpec(), description="which signals go to signals.csv")
+    metrics: MetricsSpec = Field(MetricsSpec(), description="settings of the run metrics "
+                                                            "and figures")
 
     _file: Path | None = PrivateAttr(None)
 

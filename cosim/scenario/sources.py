@@ -19,44 +19,41 @@ Point = Annotated[tuple[float, float], Field(strict=False)]
 
 
 class SourceBase(BaseModel):
-    """Fields every source has.
-
-    Attributes:
-        period: seconds between two steps (None: every master tick).
-        host: "local" or the name of a worker that runs it.
-        unit: unit string of the output `value` ("" matches any unit).
-    """
+    """Fields every source has."""
 
     model_config = STRICT
-    period: PositiveFloat | None = None
-    host: str = Field("local", min_length=1)
-    unit: str = ""
+    period: PositiveFloat | None = Field(None, description=(
+        "time between two steps, a whole multiple of tick, s (null: every master tick)"))
+    host: str = Field("local", min_length=1, description="'local' or the name of a worker "
+                                                         "that runs it")
+    unit: str = Field("", description="unit of the output 'value' ('' matches any unit)")
 
 
 class ConstantSource(SourceBase):
     """value(t) = value."""
 
-    kind: Literal["constant"]
-    value: float
+    kind: Literal["constant"] = Field(description="value(t) = value")
+    value: float = Field(description="the output, in the source's unit")
 
 
 class StepSource(SourceBase):
     """value(t) = initial for t < at, final for t >= at."""
 
-    kind: Literal["step"]
-    initial: float
-    final: float
-    at: float
+    kind: Literal["step"] = Field(description="value(t) = initial before at, final from at on")
+    initial: float = Field(description="the output before at, in the source's unit")
+    final: float = Field(description="the output from at on, in the source's unit")
+    at: float = Field(description="switch time, s")
 
 
 class RampSource(SourceBase):
     """start until t_start, then linear to end at t_end, then end."""
 
-    kind: Literal["ramp"]
-    start: float
-    end: float
-    t_start: float
-    t_end: float
+    kind: Literal["ramp"] = Field(description="start until t_start, linear to end at t_end, "
+                                              "then end")
+    start: float = Field(description="the output until t_start, in the source's unit")
+    end: float = Field(description="the output from t_end on, in the source's unit")
+    t_start: float = Field(description="start of the ramp, s")
+    t_end: float = Field(description="end of the ramp, after t_start, s")
 
     @model_validator(mode="after")
     def _ordered(self) -> RampSource:
@@ -68,29 +65,26 @@ class RampSource(SourceBase):
 class GustSource(SourceBase):
     """1-cos gust: base + amplitude/2 (1 - cos(2 pi (t - start)/duration)) inside the gust."""
 
-    kind: Literal["gust"]
-    amplitude: float
-    start: float
-    duration: PositiveFloat
-    base: float = 0.0
+    kind: Literal["gust"] = Field(description="1-cos gust: base + amplitude/2 (1 - cos(2 pi "
+                                              "(t - start) / duration)) inside the gust")
+    amplitude: float = Field(description="peak over base, mid-gust, in the source's unit")
+    start: float = Field(description="onset of the gust, s")
+    duration: PositiveFloat = Field(description="length of the gust, s")
+    base: float = Field(0.0, description="the output outside the gust, in the source's unit")
 
 
 class TableSource(SourceBase):
-    """A value tabulated over time or over travelled distance.
+    """A value tabulated over time or over travelled distance."""
 
-    Attributes:
-        over: "time" (abscissa t in s) or "distance" (abscissa in m travelled
-            by the point connected to inputs x, y).
-        points: [[abscissa, value], ...], abscissas strictly increasing;
-            the first and last values hold outside the table.
-        interpolation: "linear", or "previous" (value of the last point at or
-            before the abscissa).
-    """
-
-    kind: Literal["table"]
-    over: Literal["time", "distance"] = "time"
-    points: list[Point] = Field(min_length=1)
-    interpolation: Literal["linear", "previous"] = "linear"
+    kind: Literal["table"] = Field(description="a value tabulated over time or over "
+                                               "travelled distance")
+    over: Literal["time", "distance"] = Field("time", description=(
+        "abscissa: 'time' (s) or 'distance' (m travelled by the point connected to inputs x, y)"))
+    points: list[Point] = Field(min_length=1, description=(
+        "[[abscissa, value], ...], abscissas strictly increasing (s or m; value in the "
+        "source's unit); the first and last values hold outside"))
+    interpolation: Literal["linear", "previous"] = Field("linear", description=(
+        "'linear', or 'previous' (the value of the last point at or before the abscissa)"))
 
     @model_validator(mode="after")
     def _increasing(self) -> TableSource:

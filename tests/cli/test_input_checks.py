@@ -41,14 +41,13 @@ def _err(capsys) -> str:
 
 
 @pytest.mark.parametrize("bad, expected", [
-    ("ke: x", "components.controller.parameters.ke: expected a number or a list of numbers, "
-              "got 'x'"),
-    ("ke: [1, x]", "components.controller.parameters.ke: expected a number or a list of "
-                   "numbers, got [1, 'x']"),
+    ("ke: x", "components.controller.parameters.ke: expected a number or a list, got 'x'"),
+    ("ke: [1, x]", "components.controller.parameters.ke[1]: expected a number, got 'x'"),
     ("adaptive: yes please", "components.controller.parameters.adaptive: expected true or "
                              "false, got 'yes please'"),
     ("kz: true", "components.controller.parameters.kz: expected a number, got True"),
-    ("lateral_law: 3", "components.controller.parameters.lateral_law: expected a string, got 3"),
+    ("lateral_law: 3", "components.controller.parameters.lateral_law: expected one of "
+                       "'faithful' or 'feedforward', got 3"),
 ])
 def test_parameter_types_are_checked_at_their_line(tmp_path, capsys, bad, expected):
     path = _write(tmp_path, CONTROLLER.format(bad=bad))

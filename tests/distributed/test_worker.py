@@ -22,6 +22,7 @@ from cosim.distributed.worker import Worker
 from cosim.distributed.client import DistributedComponents, list_workers, master_endpoint
 from cosim.distributed.protocol import encode, module_allowed
 from cosim.transport.zenoh.config import free_tcp_endpoint
+from tests.cli.test_parameter_errors import USER_CLASS
 from tests.helpers.components import bits, launch, run_processes
 from tests.helpers.credentials import auth_deploy_file, shared_auth
 from tests.helpers.paths import REPO_ROOT
@@ -270,18 +271,9 @@ def test_cli_run_with_place_matches_inproc_and_workers_lists(worker, tmp_path, c
         in capsys.readouterr().err
 
 
-PARAMETERS = """\
-name: params
-duration: 0.1
-tick: 0.01
-components:
-  controller:
-    python: controllers.backstepping:BacksteppingController
-    host: w1
-    parameters:
-      kx: 1.0
-      {bad}
-"""
+# a user's class: its parameters are checked by its constructor, here on the worker
+# (a shipped class's are refused at load already, cosim.scenario.known_classes)
+PARAMETERS = USER_CLASS.replace("    parameters:", "    host: w1\n    parameters:")
 
 
 def _record_starts(worker, monkeypatch) -> list[str]:
@@ -297,23 +289,24 @@ def _record_starts(worker, monkeypatch) -> list[str]:
     return started
 
 
-@pytest.mark.parametrize("bad, located", [
-    ("kee: 2.0", "components.controller.parameters.kee: unknown parameter 'kee' (did you mean "
-                 "'ke'?); known: {known}"),
-    ("ke: .nan", "components.controller.parameters.ke: ke[0] must be > 0, got nan"),
+@pytest.mark.parametrize("cls, bad, located", [
+    ("Gain", "kk: 2.0", "components.controller.parameters.kk: unknown parameter 'kk' (did you "
+                        "mean 'k'?); known: {known}"),
+    ("BadParameter", "mass: -2.0", "components.controller.parameters.mass: mass must be "
+                                   "positive, got -2.0"),
 ], ids=["unknown", "bad-value"])
 def test_parameter_rejected_on_worker_names_its_yaml_line(worker, tmp_path, capsys,
-                                                          monkeypatch, bad, located):
+                                                          monkeypatch, cls, bad, located):
     import inspect
     import json
 
-    from controllers.backstepping.component import BacksteppingController
+    from tests.helpers import components
 
-    worker.worker.allow = ("controllers.",)
+    worker.worker.allow = ("tests.helpers.",)
     started = _record_starts(worker, monkeypatch)
     path = tmp_path / "params.yaml"
-    path.write_text(PARAMETERS.format(bad=bad))
-    known = ", ".join(inspect.signature(BacksteppingController).parameters)
+    path.write_text(PARAMETERS.format(cls=cls, good="# the next one is wrong", bad=bad))
+    known = ", ".join(inspect.signature(getattr(components, cls)).parameters)
     expected = f"{path}:10: " + located.format(known=known)
     out = tmp_path / "run"
     assert main(["run", str(path), "--listen", "tcp/127.0.0.1:0", "--connect", worker.endpoint,

@@ -20,6 +20,10 @@ from tests.helpers.paths import SCENARIOS_DIR
 
 LANE = (SCENARIOS_DIR / "lane_keeping.yaml").read_text()
 DELTA = "  - controller.delta -> vehicle.delta\n"
+# where the plant's and the controller's problems point
+VEHICLE_LINE = LANE.splitlines().index("  vehicle:") + 1
+CONTROLLER_LINE = next(i for i, line in enumerate(LANE.splitlines(), 1)
+                       if line.startswith("  controller:"))
 CONTRACT = ("delta", "torque", "wind_fx", "wind_fy", "mu", "x", "y", "psi", "vx", "vy", "r",
             "ax", "ay", "phi", "omega_fl", "omega_fr", "omega_rl", "omega_rr")
 
@@ -54,10 +58,10 @@ def test_a_plant_output_the_name_map_leaves_out_is_reported_twice(tmp_path) -> N
     yaml = foreign_lane(tmp_path, "r")
     gaps = validate_scenario(load_scenario(yaml))["warnings"]
     assert gaps == [
-        f"{yaml}:12: components.vehicle: plant 'vehicle' does not provide the plant-contract "
-        "output r (docs/plant-contract.md)",
-        f"{yaml}:15: components.controller: input not connected, held at its start value: "
-        "r = 0 (no plant provides it)"]
+        f"{yaml}:{VEHICLE_LINE}: components.vehicle: plant 'vehicle' does not provide the "
+        "plant-contract output r (docs/plant-contract.md)",
+        f"{yaml}:{CONTROLLER_LINE}: components.controller: input not connected, held at its "
+        "start value: r = 0 (no plant provides it)"]
     with pytest.raises(UserError) as info:
         validate_scenario(load_scenario(yaml), strict=True)
     assert str(info.value).splitlines() == [f"{g} (--strict)" for g in gaps]
@@ -68,12 +72,12 @@ def test_an_unconnected_plant_input_is_a_warning_and_strict_an_error(tmp_path, c
     assert main(["validate", str(yaml)]) == 0
     captured = capsys.readouterr()
     assert captured.err.splitlines() == [
-        f"warning: {yaml}:12: components.vehicle: input not connected, held at its start "
-        "value: delta = 0"]
+        f"warning: {yaml}:{VEHICLE_LINE}: components.vehicle: input not connected, held at its "
+        "start value: delta = 0"]
     assert "ok (3 components" in captured.out
     assert main(["validate", str(yaml), "--strict"]) == 2
     assert capsys.readouterr().err.splitlines() == [
-        f"error: {yaml}:12: components.vehicle: input not connected, held at its start "
+        f"error: {yaml}:{VEHICLE_LINE}: components.vehicle: input not connected, held at its start "
         "value: delta = 0 (--strict)"]
 
 
@@ -92,8 +96,8 @@ def test_run_prints_the_warning_once_before_tick0(tmp_path, capsys) -> None:
     assert main(["run", str(yaml), "--transport", "inproc", "--no-figures",
                  "--out", str(tmp_path / "run")]) == 0
     warnings = [l for l in capsys.readouterr().err.splitlines() if l.startswith("warning:")]
-    assert warnings == [f"warning: {yaml}:12: components.vehicle: input not connected, held "
-                        "at its start value: delta = 0"]
+    assert warnings == [f"warning: {yaml}:{VEHICLE_LINE}: components.vehicle: input not "
+                        "connected, held at its start value: delta = 0"]
     clock, seen = StartupClock.from_now(), []
     run_scenario(load_scenario(yaml), tmp_path / "run2", progress=False, clock=clock,
                  on_warning=lambda text: seen.append("tick0" in clock.marks))

@@ -82,7 +82,8 @@ def test_run_folder_that_cannot_be_made_is_a_user_error(tmp_path: Path, where: s
     from cosim.execution.run import run_scenario
     path = tmp_path / "s.yaml"
     path.write_text("name: m\nduration: 0.2\ntick: 0.1\n"
-                    "components:\n  src:\n    python: cosim.sources:Constant\n")
+                    "components:\n  src:\n    python: cosim.sources:Constant\n"
+                    "    parameters: {value: 0}\n")
     (tmp_path / "a_file").write_text("not a folder")
     out = tmp_path / where
     with pytest.raises(UserError) as info:
@@ -117,7 +118,7 @@ def test_startup_clock_after_a_shell_exec(exec_after_s: float, limit: float, kin
 def test_override_through_a_misspelt_component_suggests_the_real_one(tmp_path: Path) -> None:
     path = tmp_path / "s.yaml"
     path.write_text("name: s\nduration: 1\ntick: 0.01\ncomponents:\n"
-                    "  controller: {python: cosim.sources:Constant}\n")
+                    "  controller: {python: cosim.sources:Constant, parameters: {value: 1}}\n")
     with pytest.raises(ScenarioError) as info:
         load_scenario(path, ["components.controler.parameters.value=2"])
     assert str(info.value) == (

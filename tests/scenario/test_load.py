@@ -25,7 +25,7 @@ components:
   controller:
     python: controllers.backstepping:BacksteppingController
     period: 0.01
-    parameters: {ls: 5.0, gains: [1, 2]}
+    parameters: {ls: 5.0, ke: [1, 2]}
   planner:
     python: controllers.planning:Planner
     period: 0.1
@@ -75,7 +75,7 @@ def test_fields_are_read_as_typed_models(lane_change: Path) -> None:
                                                            "Cf": {"offset": -5000.0}})
     assert s.components["controller"] == PythonSpec(
         python="controllers.backstepping:BacksteppingController", period=0.01,
-        parameters={"ls": 5.0, "gains": [1, 2]})
+        parameters={"ls": 5.0, "ke": [1, 2]})
     assert s.components["foreign"].variables == {"delta": "steerAngle"}
     assert s.components["foreign"].host == "worker1"
     assert s.sources["side_wind"] == GustSource(kind="gust", amplitude=1000.0, start=2.0,
@@ -161,12 +161,12 @@ def test_fmu_components_and_paths(lane_change: Path) -> None:
 def test_overrides_are_yaml_values_at_dotted_paths(lane_change: Path) -> None:
     s = load_scenario(lane_change, [
         "components.controller.parameters.ke=2.0", "duration=5", "connections.3.delay=1",
-        "components.planner.parameters.profile.speeds=[5, 10]", "description=now 1e-3",
+        "components.planner.parameters.speed.v_max=5", "description=now 1e-3",
         "sources.side_wind.amplitude=1e-3", "record.include=[vehicle.*]"])
-    assert s.components["controller"].parameters == {"ls": 5.0, "gains": [1, 2], "ke": 2.0}
+    assert s.components["controller"].parameters == {"ls": 5.0, "ke": 2.0}
     assert s.total_ticks == 500
     assert s.connections[3].delay == 1
-    assert s.components["planner"].parameters == {"profile": {"speeds": [5, 10]}}
+    assert s.components["planner"].parameters == {"speed": {"v_max": 5}}
     assert s.description == "now 1e-3"
     assert s.sources["side_wind"].amplitude == 0.001
     assert s.record.include == ["vehicle.*"]
@@ -217,7 +217,7 @@ def test_metrics_section_is_typed(tmp_path):
     good = tmp_path / "good.yaml"
     good.write_text(
         "name: m\nduration: 1\ntick: 0.1\n"
-        "components:\n  src:\n    python: cosim.sources:Constant\n"
+        "components:\n  src: {python: cosim.sources:Constant,\n        parameters: {value: 0}}\n"
         "metrics:\n  skip_s: 0.5\n  cones: [[1, 2], [3.5, -1]]\n")
     scenario = load_scenario(good)
     assert scenario.metrics.cones == [(1.0, 2.0), (3.5, -1.0)]
