@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.resources import builtin_fmu_names
+from cosim.scenario.roles import role_problems
 
 #: Built-in plant FMUs, built by the platform on demand: discovered from the folders of fmus/.
 BUILTIN_FMUS: tuple[str, ...] = builtin_fmu_names()
@@ -83,7 +84,7 @@ def semantic_problems(data: Any, base_dir: Path | None) -> list[tuple[Loc, str]]
             if isinstance(spec, dict):
                 problems += _period_problems((section, str(name)), spec, tick)
                 problems += _fmu_problems((section, str(name)), spec, base_dir)
-    return problems
+    return problems + role_problems(data)
 
 
 def _name_problems(section: str, name: Any, seen: dict[str, str]) -> list[tuple[Loc, str]]:
