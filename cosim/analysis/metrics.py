@@ -245,8 +245,8 @@ def _cone_metric(run: RunData, report: MetricsReport) -> None:
     if found is not None:
         report.values["cone_hits"] = int(np.count_nonzero(found[1]))
     elif scenario_cones(run) is not None:
-        report.notes.append(f"cone_hits: {', '.join(run.role_column('vehicle', s) for s in ('x', 'y', 'psi'))}"
-                            " not all recorded")
+        pose = ", ".join(run.role_column("vehicle", s) for s in ("x", "y", "psi"))
+        report.notes.append(f"cone_hits: {pose} not all recorded")
 
 
 def lead_component(run: RunData) -> str | None:
@@ -313,14 +313,17 @@ def analyse_run(run: RunData, skip_s: float | None = None) -> MetricsReport:
         report.notes.append("signals.csv has no rows: no metrics")
         return report
     mask = run.time >= run.time[0] + skip_s
-    if not mask.any():
-        report.notes.append(f"skip_s={skip_s} s leaves no ticks: time-series metrics left out")
-        if not run.vehicle_run:
+    no_ticks = f"skip_s={skip_s} s leaves no ticks: time-series metrics left out"
+    if not run.vehicle_run:
+        report.notes.append(no_roles_note(run))
+        if not mask.any():
+            report.notes.append(no_ticks)
             return report
-    elif not run.vehicle_run:
-        report.values, report.notes = signal_statistics(run, mask)
-        report.notes.insert(0, no_roles_note(run))
+        report.values, notes = signal_statistics(run, mask)
+        report.notes += notes
         return report
+    if not mask.any():
+        report.notes.append(no_ticks)
     else:
         _series_metrics(run, mask, report)
         _delta_rate(run, mask, report)

@@ -227,11 +227,15 @@ class RunData:
         """The scenario path of a field of a role's component ("controller", "parameters.ls")."""
         return f"components.{self.roles[role] or role}.{field}"
 
-    def unit(self, name: str) -> str:
-        """The unit of a recorded signal from the manifest's "signals" entry ("" when unknown)."""
+    def signal_info(self, name: str) -> dict[str, Any]:
+        """A signal's entry in the manifest's "signals" (unit, description, size); {} when unknown."""
         info = self.manifest.get("signals")
         entry = info.get(name) if isinstance(info, dict) else None
-        return str(entry.get("unit", "") or "") if isinstance(entry, dict) else ""
+        return entry if isinstance(entry, dict) else {}
+
+    def unit(self, name: str) -> str:
+        """The unit of a recorded signal from the manifest ("" when unknown)."""
+        return str(self.signal_info(name).get("unit", "") or "")
 
     def array(self, name: str) -> ArraySignal | None:
         """The array signal `name` from arrays/<name>.csv, or None when absent."""

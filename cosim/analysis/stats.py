@@ -1,4 +1,4 @@
-"""The statistics the run metrics share: time-weighted RMS, and the finite check that leaves a metric out."""
+"""What the run metrics share: the time-weighted RMS, and the finite check that leaves a metric out."""
 
 from __future__ import annotations
 

@@ -2,7 +2,8 @@
 
 `register(app)` adds them to the main typer app (cosim/cli/app.py):
 
-    cosim plot RUN_DIR [--layout track|manoeuvre|speed|following|signals] [--signals PATTERN ...] [--out FILE]
+    cosim plot RUN_DIR [--layout track|manoeuvre|speed|following|signals]
+               [--signals PATTERN ...] [--out FILE]
     cosim compare RUN_DIR [RUN_DIR ...] [--out DIR]
     cosim sweep SCENARIO --vary PATH=LOW:HIGH ... --samples N [--seed S] [--set PATH=VALUE ...]
                 [--scheduler ADDRESS] [--out DIR] [--transport inproc|zenoh] [--method lhs|uniform]
@@ -33,7 +34,8 @@ from cosim.results.folders import stamped_folder
 def plot(run_dir: Path = typer.Argument(..., help="run folder"),
          layout: Optional[str] = typer.Option(
              None, "--layout", help="track | manoeuvre | speed | following | signals "
-                                    "(default: from the scenario; signals for a run that is not a vehicle run)"),
+                                    "(default: from the scenario; signals for a run that "
+                                    "is not a vehicle run)"),
          signals: Optional[list[str]] = typer.Option(
              None, "--signals", help="draw these recorded signals against time instead, one panel each "
                                      "with its unit: a glob over component.signal, quoted "

@@ -68,7 +68,8 @@ def metric_rows(metrics: Mapping[str, Any], units: Mapping[str, str] | None = No
         statistic = parse_statistic_name(name)
         component = name.split(".")[0] if "." in name else None
         if statistic is not None:
-            unit, meaning = (units or {}).get(statistic[1], ""), f"{STATISTIC_INFO[statistic[0]]} {statistic[1]}"
+            kind, signal = statistic
+            unit, meaning = (units or {}).get(signal, ""), f"{STATISTIC_INFO[kind]} {signal}"
         else:
             unit, meaning = METRIC_INFO.get(name, ("", f"reported by {component}" if component else ""))
         rows.append((name, format_value(metrics[name]), unit, meaning))

@@ -57,7 +57,7 @@ def forces_panel(ax: Axes, runs: Sequence[RunData]) -> None:
                                 label=pan._label(runs, i, name))
                 drawn = True
     if not drawn:
-        pan._missing(ax, f"{runs[0].role_column('vehicle', 'vx')}, {runs[0].role_column('vehicle', 'wind_fy')}")
+        pan._missing(ax, ", ".join(runs[0].role_column("vehicle", s) for s in ("vx", "wind_fy")))
     pan._finish(ax, "external forces", "time (s)", "force (N)")
 
 

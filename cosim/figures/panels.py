@@ -154,7 +154,7 @@ def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False
             drawn = True
     _cones(ax, runs[0])
     if not drawn:
-        _missing(ax, f"{runs[0].role_column('vehicle', 'x')}, {runs[0].role_column('vehicle', 'y')}")
+        _missing(ax, ", ".join(runs[0].role_column("vehicle", s) for s in ("x", "y")))
     if equal:
         ax.set_aspect("equal", adjustable="datalim")
     _finish(ax, title, "x (m)", "y (m)")

@@ -44,12 +44,6 @@ def select_signals(run: RunData, patterns: Sequence[str]) -> list[str]:
     return list(chosen)
 
 
-def _description(run: RunData, name: str) -> str:
-    info = run.manifest.get("signals")
-    entry = info.get(name) if isinstance(info, dict) else None
-    return str(entry.get("description", "") or "") if isinstance(entry, dict) else ""
-
-
 def signals_figure(runs: Sequence[RunData], names: Sequence[str], title: str) -> Figure:
     """One panel per signal against time, the runs overlaid; units from the first run's manifest.
 
@@ -64,7 +58,7 @@ def signals_figure(runs: Sequence[RunData], names: Sequence[str], title: str) ->
     axes = fig.subplots(rows, columns, squeeze=False).ravel()
     for ax, name in zip(axes, names):
         unit = runs[0].unit(name)
-        description = _description(runs[0], name)
+        description = str(runs[0].signal_info(name).get("description", "") or "")
         pan.time_series(ax, runs, lambda r, n=name: None if n not in r.columns else (r.time, r.columns[n]),
                         name, f"{name}: {description}" if description else name,
                         f"{name.split('.', 1)[-1]} ({unit})" if unit else name.split(".", 1)[-1])

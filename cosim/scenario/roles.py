@@ -1,4 +1,4 @@
-"""Which component plays which part in the run metrics and figures: the vehicle, the controller, the planner.
+"""Which component is the vehicle, the controller and the planner, for the run metrics and figures.
 
 The scenario's `metrics:` section names them (`metrics: {vehicle: car, controller: ctl,
 planner: plan}`); a role left out falls back to the component of the role's own name
