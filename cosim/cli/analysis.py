@@ -85,7 +85,8 @@ def compare(run_dirs: list[Path] = typer.Argument(
             out: Optional[Path] = typer.Option(
                 None, "--out", help="output folder (default: comparisons/compare-<UTC time>)"),
             layout: Optional[str] = typer.Option(
-                None, "--layout", help="track | manoeuvre | speed (Fig. 4.3/4.4: one column per run) | following")
+                None, "--layout", help="track | manoeuvre | speed (Fig. 4.3/4.4: one column per run) | following "
+                                     "| signals (every signal against time)")
             ) -> None:
     """Overlay one or more runs' figures and tabulate their metrics side by side."""
     from cosim.figures.compare import compare_runs
