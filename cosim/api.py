@@ -7,6 +7,7 @@
     run.signals["vehicle.vx"]                               # DataFrame indexed by time
     run.signals.attrs["units"]["vehicle.vx"]                # "m/s"
     run.plot()                                              # the paper-style matplotlib Figure
+    run.plot(signals=["vehicle.v*", "controller.delta"])    # any signals against time, with units
 
 Everything goes through the code paths of the `cosim` command: the same
 loading and checks (a bad scenario raises the `ScenarioError` the CLI prints),
@@ -92,16 +93,23 @@ class Run:
 
         return array_frames(self._data)
 
-    def plot(self, layout: str | None = None, save: bool = False) -> Figure:
-        """The run's paper-style figure (shown by notebooks), as `cosim plot` draws it.
+    def plot(self, layout: str | None = None, save: bool = False,
+             signals: str | Sequence[str] = ()) -> Figure:
+        """The run's figure (shown by notebooks), as `cosim plot` draws it.
 
         Args:
-            layout: "track", "manoeuvre" or None (chosen from the scenario).
+            layout: "track", "manoeuvre", "speed", "following", "signals" or None
+                (chosen from the scenario: paper-style for a vehicle run, else signals).
             save: also write it into the run folder as figure_<layout>.png.
+            signals: glob patterns ("ball.*") of recorded signals to draw against
+                time instead, one panel each with its unit, as `cosim plot --signals`.
+        Raises:
+            AnalysisError (a UserError): a pattern matches no recorded signal.
         """
         from cosim.figures.layouts import build_figure, save_png
 
-        fig, chosen = build_figure([self._data], layout)
+        patterns = [signals] if isinstance(signals, str) else list(signals)
+        fig, chosen = build_figure([self._data], layout, patterns)
         if save:
             save_png(fig, self.path / f"figure_{chosen}.png")
         return fig

@@ -20,15 +20,9 @@ if TYPE_CHECKING:
     import pandas as pd
 
 
-def _info(run: RunData) -> dict[str, dict[str, Any]]:
-    info = run.manifest.get("signals")
-    return info if isinstance(info, dict) else {}
-
-
 def _attrs(run: RunData, columns: list[str], base: dict[str, str] | None = None
            ) -> dict[str, Any]:
-    info = _info(run)
-    entry = {c: info.get(base[c] if base else c, {}) for c in columns}
+    entry = {c: run.signal_info(base[c] if base else c) for c in columns}
     return {"units": {c: str(e.get("unit", "")) for c, e in entry.items()},
             "descriptions": {c: str(e.get("description", "")) for c, e in entry.items()},
             "run_dir": str(run.run_dir)}

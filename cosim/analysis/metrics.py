@@ -7,6 +7,12 @@ whose signals the run did not record is left out, with a note saying why
 (`analyse_run` returns the notes; `write_metrics` saves them in
 `metrics_notes.txt`).
 
+Signals are read by role (cosim.scenario.roles): below, `vehicle.vx` is the vx of
+the component that plays the vehicle (`metrics.vehicle`, default the component
+named `vehicle`), `controller.*` and `planner.*` likewise. A run where no
+component plays a role gets the generic statistics of every signal instead
+(cosim.analysis.generic), not these.
+
 Definitions (t0 = first tick + `metrics.skip_s` from the scenario, default 0):
 - rms_* : time-weighted RMS, sqrt(integral(v^2 dt) / (t_end - t0)), trapezoid rule.
 - max_abs_* : max |v| over the ticks from t0.
@@ -20,7 +26,8 @@ Definitions (t0 = first tick + `metrics.skip_s` from the scenario, default 0):
   taken at the controller's period (`components.controller.period`) so a
   held output is not read as a jump within one tick.
 - mu_true_final : the last value feeding vehicle.mu (its connected source
-  column, else the scenario's vehicle parameter `mu`, else 1.0).
+  column, else the scenario's vehicle parameter `mu`, else 1.0); only when
+  some component plays the vehicle.
 - mu_hat_final : the last controller.mu_hat.
 - cone_hits : cones touched by the body rectangle (see metrics_cones), when the
   scenario lists cones under `metrics.cones` or
@@ -43,6 +50,7 @@ standstill + time_gap * vx, held between planner steps:
 
 from __future__ import annotations
 
+import functools
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,6 +59,8 @@ import numpy as np
 
 from cosim.analysis.collisions import bodies_overlap, contact_events
 from cosim.analysis.cones import cone_hits
+from cosim.analysis.generic import STATISTICS, no_roles_note, parse_statistic_name, signal_statistics
+from cosim.analysis.stats import finite_or_note, rms
 from cosim.results.jsonfile import write_text_atomically
 from cosim.analysis.rundata import (AnalysisError, RunData, load_run, loaded_run,
                                    read_json_object)
@@ -66,12 +76,23 @@ NOTES_FILE = "metrics_notes.txt"
 
 
 def ordered_metric_names(present: set[str]) -> list[str]:
-    """Metric names in table order: the platform's in METRIC_NAMES order, then the others sorted.
+    """Metric names in table order: the platform's in METRIC_NAMES order, then the generic
+    statistics by signal ("min(ball.h)", "max(ball.h)", ..., cosim.analysis.generic), then
+    the others (the components' own) sorted.
 
     Args:
         present: the names some run or sample has.
     """
-    return [n for n in METRIC_NAMES if n in present] + sorted(present - set(METRIC_NAMES))
+    generic = {n: parse_statistic_name(n) for n in present}
+    statistics = sorted((n for n, p in generic.items() if p is not None),
+                        key=lambda n: (generic[n][1], STATISTICS.index(generic[n][0])))
+    return ([n for n in METRIC_NAMES if n in present] + statistics
+            + sorted(present - set(METRIC_NAMES) - set(statistics)))
+
+
+def platform_metric(name: str) -> bool:
+    """True for a metric this module computes (a vehicle metric or a generic statistic)."""
+    return name in METRIC_NAMES or parse_statistic_name(name) is not None
 
 
 @dataclass
@@ -82,38 +103,26 @@ class MetricsReport:
     notes: list[str] = field(default_factory=list)
 
 
-def rms(t: np.ndarray, v: np.ndarray) -> float:
-    """Time-weighted RMS of v(t) by the trapezoid rule (plain RMS when t spans no time).
-
-    Args:
-        t: strictly increasing times.
-        v: values at those times.
-    """
-    if len(v) == 1 or t[-1] == t[0]:
-        return float(np.sqrt(np.mean(v * v)))
-    return float(np.sqrt(np.trapezoid(v * v, t) / (t[-1] - t[0])))
-
-
 def lateral_error_cg(run: RunData) -> np.ndarray | None:
     """yc, the paper's lateral error at the CG: controller.yc, else yL - ls psiL
     with the controller's ls (default 5 m)."""
-    yc = run.signal("controller.yc")
+    yc = run.role_signal("controller", "yc")
     if yc is not None:
         return yc
-    y_l, psi_l = run.signal("controller.yL"), run.signal("controller.psiL")
+    y_l, psi_l = run.role_signal("controller", "yL"), run.role_signal("controller", "psiL")
     if y_l is None or psi_l is None:
         return None
-    return y_l - run.number("components.controller.parameters.ls", 5.0) * psi_l
+    return y_l - run.number(run.role_path("controller", "parameters.ls"), 5.0) * psi_l
 
 
 def speed_error(run: RunData) -> np.ndarray | None:
     """ex: controller.ex, else vehicle.vx minus controller.vx_ref or planner.v_ref."""
-    ex = run.signal("controller.ex")
+    ex = run.role_signal("controller", "ex")
     if ex is not None:
         return ex
-    vx = run.signal("vehicle.vx")
-    for ref_name in ("controller.vx_ref", "planner.v_ref"):
-        ref = run.signal(ref_name)
+    vx = run.role_signal("vehicle", "vx")
+    for role, ref_name in (("controller", "vx_ref"), ("planner", "v_ref")):
+        ref = run.role_signal(role, ref_name)
         if vx is not None and ref is not None:
             return vx - ref
     return None
@@ -126,49 +135,41 @@ def true_mu(run: RunData) -> tuple[np.ndarray, str]:
     "a -> vehicle" feeding it from a.mu) to its source column;
     when unconnected, the scenario's `components.vehicle.parameters.mu`, else 1.0.
     """
-    src = run.source_of("vehicle.mu")
+    src = run.source_of(run.role_column("vehicle", "mu"))
     if src is not None:
         return run.columns[src], src
-    mu = run.number("components.vehicle.parameters.mu", 1.0)
-    source = "components.vehicle.parameters.mu" if run.lookup(
-        "components.vehicle.parameters.mu") is not None else "default 1.0"
+    where = run.role_path("vehicle", "parameters.mu")
+    mu = run.number(where, 1.0)
+    source = where if run.lookup(where) is not None else "default 1.0"
     return np.full(len(run.time), mu), source
 
 
-def _finite_or_note(name: str, t: np.ndarray, v: np.ndarray, notes: list[str]) -> bool:
-    """True when v is all finite; else add a note naming the first bad tick."""
-    bad = np.flatnonzero(~np.isfinite(v))
-    if len(bad) == 0:
-        return True
-    notes.append(f"{name}: non-finite value {v[bad[0]]!r} at t={t[bad[0]]:.10g} s; left out")
-    return False
-
-
 def _delta_rate(run: RunData, mask: np.ndarray, report: MetricsReport) -> None:
-    delta = run.signal("controller.delta")
+    delta = run.role_signal("controller", "delta")
     if delta is None:
-        report.notes.append("max_abs_delta_rate: controller.delta not recorded")
+        report.notes.append(f"max_abs_delta_rate: {run.role_column('controller', 'delta')} not recorded")
         return
-    period = run.number("components.controller.period", 0.0)
+    period = run.number(run.role_path("controller", "period"), 0.0)
     tick = run.number("tick", 0.0)
     stride = max(1, int(round(period / tick))) if period > 0 and tick > 0 else 1
     t, d = run.time[mask][::stride], delta[mask][::stride]
     if len(t) < 2:
         report.notes.append("max_abs_delta_rate: fewer than two samples")
         return
-    if _finite_or_note("max_abs_delta_rate", t, d, report.notes):
+    if finite_or_note("max_abs_delta_rate", t, d, report.notes):
         report.values["max_abs_delta_rate"] = float(np.max(np.abs(np.diff(d) / np.diff(t))))
 
 
 def _series_metrics(run: RunData, mask: np.ndarray, report: MetricsReport) -> None:
+    ctl, veh = (functools.partial(run.role_column, role) for role in ("controller", "vehicle"))
     series = {
-        "yc": (lateral_error_cg(run), "controller.yc (or controller.yL, controller.psiL)"),
-        "yc_cg": (run.signal("controller.yc_cg"), "controller.yc_cg"),
-        "yL": (run.signal("controller.yL"), "controller.yL"),
-        "psiL": (run.signal("controller.psiL"), "controller.psiL"),
-        "ex": (speed_error(run), "controller.ex (or vehicle.vx and a speed reference)"),
-        "delta": (run.signal("controller.delta"), "controller.delta"),
-        "ay": (run.signal("vehicle.ay"), "vehicle.ay"),
+        "yc": (lateral_error_cg(run), f"{ctl('yc')} (or {ctl('yL')}, {ctl('psiL')})"),
+        "yc_cg": (run.role_signal("controller", "yc_cg"), ctl("yc_cg")),
+        "yL": (run.role_signal("controller", "yL"), ctl("yL")),
+        "psiL": (run.role_signal("controller", "psiL"), ctl("psiL")),
+        "ex": (speed_error(run), f"{ctl('ex')} (or {veh('vx')} and a speed reference)"),
+        "delta": (run.role_signal("controller", "delta"), ctl("delta")),
+        "ay": (run.role_signal("vehicle", "ay"), veh("ay")),
     }
     with_rms = {"yc", "yc_cg", "yL", "psiL", "ex"}
     t = run.time[mask]
@@ -178,7 +179,7 @@ def _series_metrics(run: RunData, mask: np.ndarray, report: MetricsReport) -> No
             report.notes.append(f"{', '.join(names)}: {source} not recorded")
             continue
         v = values[mask]
-        if not _finite_or_note(", ".join(names), t, v, report.notes):
+        if not finite_or_note(", ".join(names), t, v, report.notes):
             continue
         if key in with_rms:
             report.values[f"rms_{key}"] = rms(t, v)
@@ -186,12 +187,14 @@ def _series_metrics(run: RunData, mask: np.ndarray, report: MetricsReport) -> No
 
 
 def _friction_metrics(run: RunData, report: MetricsReport) -> None:
-    mu, _ = true_mu(run)
-    if len(mu):
-        report.values["mu_true_final"] = float(mu[-1])
-    mu_hat = run.signal("controller.mu_hat")
+    if run.roles["vehicle"] is None:
+        report.notes.append("mu_true_final: no vehicle (metrics.vehicle, or a component "
+                            "named 'vehicle')")
+    elif len(run.time):
+        report.values["mu_true_final"] = float(true_mu(run)[0][-1])
+    mu_hat = run.role_signal("controller", "mu_hat")
     if mu_hat is None:
-        report.notes.append("mu_hat_final: controller.mu_hat not recorded")
+        report.notes.append(f"mu_hat_final: {run.role_column('controller', 'mu_hat')} not recorded")
     elif len(mu_hat):
         report.values["mu_hat_final"] = float(mu_hat[-1])
 
@@ -202,7 +205,7 @@ def scenario_cones(run: RunData) -> np.ndarray | None:
     Raises:
         AnalysisError: the cones field is not a list of [x, y] number pairs.
     """
-    for where in ("metrics.cones", "components.planner.parameters.cones"):
+    for where in ("metrics.cones", run.role_path("planner", "parameters.cones")):
         cones = run.lookup(where)
         if cones is None or (isinstance(cones, list) and not cones):
             continue  # the scenario schema dumps "no cones" as []
@@ -223,10 +226,10 @@ def run_cone_hits(run: RunData) -> tuple[np.ndarray, np.ndarray] | None:
     The body is `metrics.vehicle_length` x `metrics.vehicle_width` (defaults
     4.5 m x 1.8 m), its front `metrics.vehicle_front` ahead of the CG (default:
     half the length). None when the scenario lists no cones or the run did not
-    record vehicle.x, vehicle.y and vehicle.psi.
+    record the vehicle's x, y and psi.
     """
     cones = scenario_cones(run)
-    pose = [run.signal(f"vehicle.{s}") for s in ("x", "y", "psi")]
+    pose = [run.role_signal("vehicle", s) for s in ("x", "y", "psi")]
     if cones is None or any(p is None for p in pose):
         return None
     front = run.lookup("metrics.vehicle_front")
@@ -242,19 +245,21 @@ def _cone_metric(run: RunData, report: MetricsReport) -> None:
     if found is not None:
         report.values["cone_hits"] = int(np.count_nonzero(found[1]))
     elif scenario_cones(run) is not None:
-        report.notes.append("cone_hits: vehicle.x, vehicle.y or vehicle.psi not recorded")
+        pose = ", ".join(run.role_column("vehicle", s) for s in ("x", "y", "psi"))
+        report.notes.append(f"cone_hits: {pose} not all recorded")
 
 
 def lead_component(run: RunData) -> str | None:
-    """The component that feeds planner.lead_x (the lead vehicle), or None without one."""
-    source = run.source_of("planner.lead_x")
+    """The component that feeds the planner's lead_x (the lead vehicle), or None without one."""
+    source = run.source_of(run.role_column("planner", "lead_x")) if run.roles["planner"] else None
     return None if source is None else source.split(".")[0]
 
 
 def _collision_metric(run: RunData, lead: str, report: MetricsReport) -> None:
-    poses = [[run.signal(f"{who}.{s}") for s in ("x", "y", "psi")] for who in ("vehicle", lead)]
+    vehicle = run.roles["vehicle"] or "vehicle"
+    poses = [[run.signal(f"{who}.{s}") for s in ("x", "y", "psi")] for who in (vehicle, lead)]
     if any(p is None for pose in poses for p in pose):
-        report.notes.append(f"collisions: vehicle.x/y/psi or {lead}.x/y/psi not recorded")
+        report.notes.append(f"collisions: {vehicle}.x/y/psi or {lead}.x/y/psi not recorded")
         return
     front = run.lookup("metrics.vehicle_front")
     overlap = bodies_overlap(tuple(poses[0]), tuple(poses[1]),
@@ -269,14 +274,15 @@ def _following_metrics(run: RunData, mask: np.ndarray, report: MetricsReport) ->
     if lead is None:
         return
     _collision_metric(run, lead, report)
-    names = ("planner.gap", "planner.gap_ref", "vehicle.vx", f"{lead}.vx")
+    names = (run.role_column("planner", "gap"), run.role_column("planner", "gap_ref"),
+             run.role_column("vehicle", "vx"), f"{lead}.vx")
     found = [run.signal(n) for n in names]
     if any(v is None for v in found) or not mask.any():
         report.notes.append(f"gap metrics: {', '.join(names)} not all recorded (or no ticks)")
         return
     gap, gap_ref, vx, v_lead = (v[mask] for v in found)
     t = run.time[mask]
-    if not _finite_or_note("gap metrics", t, gap - gap_ref + vx + v_lead, report.notes):
+    if not finite_or_note("gap metrics", t, gap - gap_ref + vx + v_lead, report.notes):
         return
     error = gap - gap_ref
     report.values["rms_gap_error"] = rms(t, error)
@@ -307,8 +313,17 @@ def analyse_run(run: RunData, skip_s: float | None = None) -> MetricsReport:
         report.notes.append("signals.csv has no rows: no metrics")
         return report
     mask = run.time >= run.time[0] + skip_s
+    no_ticks = f"skip_s={skip_s} s leaves no ticks: time-series metrics left out"
+    if not run.vehicle_run:
+        report.notes.append(no_roles_note(run))
+        if not mask.any():
+            report.notes.append(no_ticks)
+            return report
+        report.values, notes = signal_statistics(run, mask)
+        report.notes += notes
+        return report
     if not mask.any():
-        report.notes.append(f"skip_s={skip_s} s leaves no ticks: time-series metrics left out")
+        report.notes.append(no_ticks)
     else:
         _series_metrics(run, mask, report)
         _delta_rate(run, mask, report)
@@ -344,7 +359,7 @@ def write_metrics(run_dir: str | Path, skip_s: float | None = None,
     run_dir = Path(run_dir)
     report = analyse_run(loaded_run(run_dir, run), skip_s)
     path = run_dir / "metrics.json"
-    merged = {k: v for k, v in read_json_object(path).items() if k not in METRIC_NAMES}
+    merged = {k: v for k, v in read_json_object(path).items() if not platform_metric(k)}
     merged.update(report.values)
     write_text_atomically(path, json.dumps(merged, indent=2) + "\n")  # no 0-byte file on a full disk
     notes_path = run_dir / NOTES_FILE

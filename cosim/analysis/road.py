@@ -1,7 +1,7 @@
 """The planner's road of a run, rebuilt from its manifest: lane lines and obstacles.
 
 The road is the planner's: the scenario component whose class is
-controllers.planning.planner's (the one named "planner" first) and its `road`
+controllers.planning.planner's (the one playing the planner first, cosim.scenario.roles) and its `road`
 parameter, rebuilt with controllers.road.builders.road_from_spec. A relative
 OpenDRIVE file (`road: {opendrive: ...}`) resolves against the folder of the
 scenario file the run was started from, as it did for the run. Obstacles are
@@ -57,7 +57,7 @@ def planner_parameters(run: RunData) -> tuple[str, dict] | None:
         run: the loaded run; its scenario's components are searched.
     """
     components = run.lookup("components", {}) or {}
-    names = sorted(components, key=lambda n: (n != "planner", n))
+    names = sorted(components, key=lambda n: (n != run.roles["planner"], n))
     for name in names:
         comp = components[name]
         if not isinstance(comp, dict) or not str(comp.get("python", "")).startswith(PLANNER_CLASS):

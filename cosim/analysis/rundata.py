@@ -11,6 +11,7 @@ out what a run did not record. A file that exists but cannot be read is an
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -20,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from cosim.errors import UserError
+from cosim.scenario.roles import resolve_roles
 
 
 class AnalysisError(UserError):
@@ -194,6 +196,46 @@ class RunData:
     def signal(self, name: str) -> np.ndarray | None:
         """The column `name` ("component.signal"), or None when not recorded."""
         return self.columns.get(name)
+
+    @functools.cached_property
+    def roles(self) -> dict[str, str | None]:
+        """role ("vehicle", "controller", "planner") -> the component playing it, or None
+        (cosim.scenario.roles: the scenario's `metrics:` names, else the role's own name)."""
+        arrays = self.run_dir / "arrays"
+        recorded = [*self.columns, *(p.stem for p in arrays.glob("*.csv"))] if arrays.is_dir() \
+            else list(self.columns)
+        present = {name.split(".", 1)[0] for name in recorded}
+        for pair in self.connections():
+            present.update(end.split(".", 1)[0] for end in pair)
+        return resolve_roles(self.scenario, present)
+
+    @property
+    def vehicle_run(self) -> bool:
+        """True when some component plays a role; else the run gets the generic analysis."""
+        return any(self.roles.values())
+
+    def role_column(self, role: str, signal: str) -> str:
+        """"component.signal" of a role's signal ("vehicle", "vx" -> "car.vx"); the role's
+        own name stands for the component when no component plays it (for messages)."""
+        return f"{self.roles[role] or role}.{signal}"
+
+    def role_signal(self, role: str, signal: str) -> np.ndarray | None:
+        """The column of a role's signal, or None when not recorded (or no component plays it)."""
+        return self.columns.get(self.role_column(role, signal)) if self.roles[role] else None
+
+    def role_path(self, role: str, field: str) -> str:
+        """The scenario path of a field of a role's component ("controller", "parameters.ls")."""
+        return f"components.{self.roles[role] or role}.{field}"
+
+    def signal_info(self, name: str) -> dict[str, Any]:
+        """A signal's entry in the manifest's "signals" (unit, description, size); {} when unknown."""
+        info = self.manifest.get("signals")
+        entry = info.get(name) if isinstance(info, dict) else None
+        return entry if isinstance(entry, dict) else {}
+
+    def unit(self, name: str) -> str:
+        """The unit of a recorded signal from the manifest ("" when unknown)."""
+        return str(self.signal_info(name).get("unit", "") or "")
 
     def array(self, name: str) -> ArraySignal | None:
         """The array signal `name` from arrays/<name>.csv, or None when absent."""

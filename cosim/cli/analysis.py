@@ -2,7 +2,8 @@
 
 `register(app)` adds them to the main typer app (cosim/cli/app.py):
 
-    cosim plot RUN_DIR [--layout track|manoeuvre|speed|following]
+    cosim plot RUN_DIR [--layout track|manoeuvre|speed|following|signals]
+               [--signals PATTERN ...] [--out FILE]
     cosim compare RUN_DIR [RUN_DIR ...] [--out DIR]
     cosim sweep SCENARIO --vary PATH=LOW:HIGH ... --samples N [--seed S] [--set PATH=VALUE ...]
                 [--scheduler ADDRESS] [--out DIR] [--transport inproc|zenoh] [--method lhs|uniform]
@@ -31,14 +32,30 @@ from cosim.results.folders import stamped_folder
 
 
 def plot(run_dir: Path = typer.Argument(..., help="run folder"),
-         layout: Optional[str] = typer.Option(None, "--layout",
-                                              help="track | manoeuvre | speed | following (default: from the scenario)")
+         layout: Optional[str] = typer.Option(
+             None, "--layout", help="track | manoeuvre | speed | following | signals "
+                                    "(default: from the scenario; signals for a run that "
+                                    "is not a vehicle run)"),
+         signals: Optional[list[str]] = typer.Option(
+             None, "--signals", help="draw these recorded signals against time instead, one panel each "
+                                     "with its unit: a glob over component.signal, quoted "
+                                     "(repeatable: --signals 'ball.*' --signals '*.vx')"),
+         out: Optional[Path] = typer.Option(
+             None, "--out", help="PNG file to write (default: RUN_DIR/figure_<layout>.png)"),
          ) -> None:
-    """Redraw the paper-style figure of a run into its folder."""
+    """Redraw the figure of a run: paper-style for a vehicle run, else its signals against time.
+
+    Examples:
+
+        cosim plot runs/lane_change-20260101T120000Z
+
+        cosim plot RUN_DIR --signals 'ball.*' --out /tmp/ball.png
+    """
     from cosim.figures.layouts import draw_figures
+    from cosim.analysis.rundata import load_run
 
     try:
-        paths = draw_figures(run_dir, layout)
+        paths = draw_figures(run_dir, layout, run=load_run(run_dir), signals=signals or (), out=out)
     except UserError as exc:
         raise _fail(exc) from None
     for path in paths:
@@ -68,7 +85,8 @@ def compare(run_dirs: list[Path] = typer.Argument(
             out: Optional[Path] = typer.Option(
                 None, "--out", help="output folder (default: comparisons/compare-<UTC time>)"),
             layout: Optional[str] = typer.Option(
-                None, "--layout", help="track | manoeuvre | speed (Fig. 4.3/4.4: one column per run) | following")
+                None, "--layout", help="track | manoeuvre | speed (Fig. 4.3/4.4: one column per run) | following "
+                                     "| signals (every signal against time)")
             ) -> None:
     """Overlay one or more runs' figures and tabulate their metrics side by side."""
     from cosim.figures.compare import compare_runs

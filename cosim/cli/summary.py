@@ -2,8 +2,10 @@
 
 The run table gives status, ticks, times, the real-time factor, the time to
 tick 0 and the pacing statistics; the metrics table lists the metrics of
-`cosim.analysis.metrics` in their canonical order with unit and meaning, then the
-metrics the components reported ("component.metric"). Values are rounded for
+`cosim.analysis.metrics` in their canonical order with unit and meaning (a run
+that is not a vehicle run: the statistics of its signals, "max(ball.h)", with the
+signal's unit from the manifest), then the metrics the components reported
+("component.metric"). Values are rounded for
 reading; metrics.json keeps them exact.
 """
 
@@ -43,20 +45,54 @@ METRIC_INFO: dict[str, tuple[str, str]] = {
 }
 
 
-def metric_rows(metrics: Mapping[str, Any]) -> list[tuple[str, str, str, str]]:
+# the meaning of each generic statistic (cosim.analysis.generic), before the signal's name
+STATISTIC_INFO = {"min": "smallest value of", "max": "largest value of",
+                  "rms": "time-weighted RMS of", "final": "value at the last tick of"}
+
+
+def metric_rows(metrics: Mapping[str, Any], units: Mapping[str, str] | None = None
+                ) -> list[tuple[str, str, str, str]]:
     """(name, value, unit, meaning) rows: known metrics in canonical order, then the rest.
 
     Args:
         metrics: metric name -> value (as in metrics.json).
+        units: "component.signal" -> unit, for the generic statistics ("max(ball.h)").
     """
+    from cosim.analysis.generic import parse_statistic_name
+    from cosim.analysis.metrics import ordered_metric_names
+
     known = [n for n in METRIC_INFO if n in metrics]
-    others = sorted(n for n in metrics if n not in METRIC_INFO)
+    others = [n for n in ordered_metric_names(set(metrics)) if n not in METRIC_INFO]
     rows = []
     for name in known + others:
+        statistic = parse_statistic_name(name)
         component = name.split(".")[0] if "." in name else None
-        unit, meaning = METRIC_INFO.get(name, ("", f"reported by {component}" if component else ""))
+        if statistic is not None:
+            kind, signal = statistic
+            unit, meaning = (units or {}).get(signal, ""), f"{STATISTIC_INFO[kind]} {signal}"
+        else:
+            unit, meaning = METRIC_INFO.get(name, ("", f"reported by {component}" if component else ""))
         rows.append((name, format_value(metrics[name]), unit, meaning))
     return rows
+
+
+def signal_units(manifest: Any) -> dict[str, str]:
+    """"component.signal" -> unit from a run's manifest.json ({} when it cannot be read).
+
+    Args:
+        manifest: the manifest's path (None: no units).
+    """
+    from cosim.analysis.rundata import read_json_object
+
+    if manifest is None:
+        return {}
+    try:
+        info = read_json_object(manifest).get("signals")
+    except Exception:  # the summary is printed whatever the manifest holds
+        return {}
+    if not isinstance(info, dict):
+        return {}
+    return {name: str(e.get("unit", "") or "") for name, e in info.items() if isinstance(e, dict)}
 
 
 def format_value(value: Any) -> str:
@@ -111,6 +147,6 @@ def print_summary(result: Any, console: Console | None = None) -> None:
     metrics.add_column("value", justify="right")
     metrics.add_column("unit")
     metrics.add_column("meaning")
-    for row in metric_rows(result.metrics):
+    for row in metric_rows(result.metrics, signal_units(getattr(result, "manifest", None))):
         metrics.add_row(*row)
     console.print(metrics)

@@ -16,7 +16,7 @@ from typing import Any
 def analyse_run_folder(result: Any, figures: bool) -> list[str]:
     """Merge the run metrics into metrics.json and draw the figures; notes to print.
 
-    A run folder that cannot be analysed (e.g. a scenario without a vehicle)
+    A run folder that cannot be analysed (e.g. a signals.csv that cannot be read)
     gives a note, not an error: the run itself succeeded.
 
     Args:

@@ -32,16 +32,16 @@ def speed_error_panel(ax: Axes, runs: Sequence[RunData]) -> None:
 
 def aero_force(run: RunData) -> sig.Series | None:
     """The aero drag Fwx = -cx vx |vx| the plant applies (cx: the vehicle's parameter, else 0.42)."""
-    vx = run.signal("vehicle.vx")
+    vx = run.role_signal("vehicle", "vx")
     if vx is None:
         return None
-    cx = run.number("components.vehicle.parameters.cx", 0.42)
+    cx = run.number(run.role_path("vehicle", "parameters.cx"), 0.42)
     return run.time, -cx * vx * np.abs(vx)
 
 
 def side_wind(run: RunData) -> sig.Series | None:
-    """The side-wind force fed to vehicle.wind_fy, when connected."""
-    src = run.source_of("vehicle.wind_fy")
+    """The side-wind force fed to the vehicle's wind_fy, when connected."""
+    src = run.source_of(run.role_column("vehicle", "wind_fy")) if run.roles["vehicle"] else None
     return None if src is None else (run.time, run.columns[src])
 
 
@@ -57,20 +57,20 @@ def forces_panel(ax: Axes, runs: Sequence[RunData]) -> None:
                                 label=pan._label(runs, i, name))
                 drawn = True
     if not drawn:
-        pan._missing(ax, "vehicle.vx, vehicle.wind_fy")
+        pan._missing(ax, ", ".join(runs[0].role_column("vehicle", s) for s in ("vx", "wind_fy")))
     pan._finish(ax, "external forces", "time (s)", "force (N)")
 
 
 def lateral_cg_panel(ax: Axes, runs: Sequence[RunData]) -> None:
     """yc = yL - ls psiL (the paper's, solid) and yc_cg, the CG's geometric offset (dashed)."""
-    pan.tracking(ax, runs, sig.lateral_cg, lambda r: sig.column(r, "controller.yc_cg"),
+    pan.tracking(ax, runs, sig.lateral_cg, lambda r: sig.role_series(r, "controller", "yc_cg"),
                  ("yc", "yc_cg"), "lateral error at CG",
                  "yc = yL - ls psiL, yc_cg geometric (m)")
 
 
 def manoeuvre_start(run: RunData) -> float | None:
     """Time the planner's manoeuvre_state first leaves 0, or None."""
-    state = run.signal("planner.manoeuvre_state")
+    state = run.role_signal("planner", "manoeuvre_state")
     if state is None or not np.any(state > 0):
         return None
     return float(run.time[int(np.flatnonzero(state > 0)[0])])
@@ -79,7 +79,7 @@ def manoeuvre_start(run: RunData) -> float | None:
 def steering_panel(ax: Axes, runs: Sequence[RunData]) -> None:
     """Steering angle; with a manoeuvre, its start marked and an inset around it
     (the counter-steer, if any, shows there: the steer leaving 0 the wrong way)."""
-    pan.time_series(ax, runs, lambda r: sig.column(r, "controller.delta"), "delta",
+    pan.time_series(ax, runs, lambda r: sig.role_series(r, "controller", "delta"), "delta",
                     "steering angle", "delta (rad)")
     start = manoeuvre_start(runs[0])
     if start is None:
@@ -87,7 +87,7 @@ def steering_panel(ax: Axes, runs: Sequence[RunData]) -> None:
     inset = ax.inset_axes([0.06, 0.55, 0.38, 0.4])
     lo, hi = start - INSET_BEFORE, start + INSET_AFTER
     for i, run in enumerate(runs):
-        delta = run.signal("controller.delta")
+        delta = run.role_signal("controller", "delta")
         if delta is None:
             continue
         keep = (run.time >= lo) & (run.time <= hi)
@@ -108,7 +108,8 @@ def focus_on_manoeuvre(ax: Axes, run: RunData, margin: float = 30.0) -> None:
     manoeuvre_state back to 0, else the run's end); without a manoeuvre, the
     whole map at equal aspect.
     """
-    state, x, y = (run.signal(n) for n in ("planner.manoeuvre_state", "vehicle.x", "vehicle.y"))
+    state = run.role_signal("planner", "manoeuvre_state")
+    x, y = run.role_signal("vehicle", "x"), run.role_signal("vehicle", "y")
     if state is None or x is None or y is None or not np.any(state > 0):
         ax.set_aspect("equal", adjustable="datalim")
         return

@@ -1,7 +1,7 @@
 """The vehicle-following figure: gap, both speeds and the follower's lateral errors.
 
 Chosen by cosim.figures.layouts for a run whose planner follows a lead
-vehicle (planner.lead_x connected; the lead is the component feeding it, see
+vehicle (the planner's lead_x connected; the lead is the component feeding it, see
 cosim.analysis.metrics.lead_component). Nine panels, 3 x 3: the map (road,
 both vehicles' paths, equal aspect), the gap against the desired gap, the
 speeds of follower and lead with the follower's reference; the time gap and
@@ -45,7 +45,7 @@ def _map(ax: Axes, runs: Sequence[RunData]) -> None:
 
 
 def _speeds(ax: Axes, runs: Sequence[RunData]) -> None:
-    pan.tracking(ax, runs, lambda r: sig.column(r, "vehicle.vx"), sig.speed_reference,
+    pan.tracking(ax, runs, lambda r: sig.role_series(r, "vehicle", "vx"), sig.speed_reference,
                  ("follower vx", "follower vx_ref"), "speeds", "speed (m/s)")
     for i, run in enumerate(runs):
         found = _lead_column(run, "vx")
@@ -57,7 +57,8 @@ def _speeds(ax: Axes, runs: Sequence[RunData]) -> None:
 
 def _ratio(run: RunData, kind: str) -> sig.Series | None:
     """Time gap (gap / vx, moving) or time to collision (gap / closing speed, closing)."""
-    gap, vx, v_lead = run.signal("planner.gap"), run.signal("vehicle.vx"), _lead_column(run, "vx")
+    gap, vx = run.role_signal("planner", "gap"), run.role_signal("vehicle", "vx")
+    v_lead = _lead_column(run, "vx")
     if gap is None or vx is None or v_lead is None:
         return None
     speed = vx if kind == "time gap" else vx - v_lead[1]
@@ -78,20 +79,20 @@ def following_figure(runs: Sequence[RunData], title: str) -> Figure:
     fig = Figure(figsize=(15, 12), layout="constrained")
     axes = fig.subplots(3, 3).ravel()
     _map(axes[0], runs)
-    pan.tracking(axes[1], runs, lambda r: sig.column(r, "planner.gap"),
-                 lambda r: sig.column(r, "planner.gap_ref"), ("gap", "desired gap"),
+    pan.tracking(axes[1], runs, lambda r: sig.role_series(r, "planner", "gap"),
+                 lambda r: sig.role_series(r, "planner", "gap_ref"), ("gap", "desired gap"),
                  "gap to the lead (bumper to bumper, along the road)", "gap (m)")
     _speeds(axes[2], runs)
     _headways(axes[3], runs)
-    pan.tracking(axes[4], runs, lambda r: sig.column(r, "vehicle.ax"),
-                 lambda r: sig.column(r, "planner.a_follow"), ("follower ax", "policy a_ref"),
+    pan.tracking(axes[4], runs, lambda r: sig.role_series(r, "vehicle", "ax"),
+                 lambda r: sig.role_series(r, "planner", "a_follow"), ("follower ax", "policy a_ref"),
                  "longitudinal acceleration", "acceleration (m/s2)")
-    pan.time_series(axes[5], runs, lambda r: sig.column(r, "controller.delta"), "delta",
+    pan.time_series(axes[5], runs, lambda r: sig.role_series(r, "controller", "delta"), "delta",
                     "follower: steering angle", "delta (rad)")
     pan.time_series(axes[6], runs, sig.lateral_cg, "yc", "follower: lateral error at CG", "yc (m)")
-    pan.time_series(axes[7], runs, lambda r: sig.column(r, "controller.yL"), "yL",
+    pan.time_series(axes[7], runs, lambda r: sig.role_series(r, "controller", "yL"), "yL",
                     "follower: lateral error at preview point", "yL (m)")
-    pan.time_series(axes[8], runs, lambda r: sig.column(r, "controller.psiL"), "psiL",
+    pan.time_series(axes[8], runs, lambda r: sig.role_series(r, "controller", "psiL"), "psiL",
                     "follower: heading error", "psiL (rad)")
     fig.suptitle(title)
     return fig

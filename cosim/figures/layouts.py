@@ -1,6 +1,6 @@
 """Paper-style figures of a run (or several runs overlaid), saved as PNG.
 
-Four layouts, after the paper:
+Four layouts after the paper, for vehicle runs, and one for any run:
 - "track" (Fig. 4): twelve panels, 4 x 3: x-y map at equal aspect with the
   planned path (and the planner's road: lane edges, obstacles;
   cosim.figures.road), curvature rho, speed tracking vx vs vx_ref, speed
@@ -18,13 +18,17 @@ Four layouts, after the paper:
 - "following" (vehicle following, cosim.figures.following): nine panels: map
   with both vehicles, gap, both speeds, time gap and TTC, acceleration,
   steering, the follower's lateral errors yc, yL, psiL.
+- "signals" (cosim.figures.signal_plot): recorded signals against time, one
+  panel each, with their units; the chosen ones (`cosim plot RUN --signals
+  'ball.*'`), else the run's first 24.
 
 The layout comes from the scenario's `metrics.figures` when given; else a run
-with a lead vehicle (the planner's lead_x input connected) means following;
+where no component plays the vehicle, controller or planner (cosim.scenario.roles)
+means signals; else a run with a lead vehicle (the planner's lead_x input connected) means following;
 else a scenario name with "lane", "obstacle",
 "iso3888" or "manoeuvre" in it means manoeuvre, one with "satory", "track"
 or "friction" means track; else a planner that moved off its lane
-(`planner.lateral_offset` not always 0) means manoeuvre; else track. (The
+(its `lateral_offset` not always 0) means manoeuvre; else track. (The
 planner always offers an alternative lane, so alternative windows alone say
 nothing.)
 Figures are built on matplotlib's Agg backend without pyplot, so drawing
@@ -47,10 +51,11 @@ from cosim.figures import fidelity_panels as fp
 from cosim.figures import panels as pan
 from cosim.figures.following import following_figure
 from cosim.figures import signals as sig
+from cosim.figures.signal_plot import default_signals, select_signals, signals_figure
 from cosim.analysis.metrics import lead_component
 from cosim.analysis.rundata import AnalysisError, RunData, loaded_run
 
-LAYOUTS = ("track", "manoeuvre", "speed", "following")
+LAYOUTS = ("track", "manoeuvre", "speed", "following", "signals")
 MANOEUVRE_WORDS = ("lane", "obstacle", "iso3888", "manoeuvre", "maneuver")
 TRACK_WORDS = ("satory", "track", "friction")
 DPI = 110
@@ -58,7 +63,7 @@ PNG_COMPRESS_LEVEL = 1   # zlib level: same pixels, ~15 % larger file, encodes a
 
 
 def choose_layout(run: RunData) -> str:
-    """"track", "manoeuvre" or "following" for this run (rules in the module docstring).
+    """"track", "manoeuvre", "following" or "signals" for this run (rules in the module docstring).
 
     Raises:
         AnalysisError: the scenario's `metrics.figures` is not a known layout.
@@ -69,6 +74,8 @@ def choose_layout(run: RunData) -> str:
             raise AnalysisError(f"{run.run_dir / 'manifest.json'}: scenario.metrics.figures: "
                                 f"expected one of {', '.join(LAYOUTS)}, found {hint!r}")
         return hint
+    if not run.vehicle_run:
+        return "signals"
     if lead_component(run) is not None:
         return "following"
     name = str(run.lookup("name", "")).lower()
@@ -76,22 +83,22 @@ def choose_layout(run: RunData) -> str:
         return "manoeuvre"
     if any(word in name for word in TRACK_WORDS):
         return "track"
-    offset = run.signal("planner.lateral_offset")
+    offset = run.role_signal("planner", "lateral_offset")
     if offset is not None and np.any(offset != 0):
         return "manoeuvre"
     return "track"
 
 
 def _errors(axes, runs: Sequence[RunData]) -> None:
-    pan.time_series(axes[0], runs, lambda r: sig.column(r, "controller.yL"), "yL",
+    pan.time_series(axes[0], runs, lambda r: sig.role_series(r, "controller", "yL"), "yL",
                     "lateral error at preview point", "yL (m)")
-    pan.time_series(axes[1], runs, lambda r: sig.column(r, "controller.psiL"), "psiL",
+    pan.time_series(axes[1], runs, lambda r: sig.role_series(r, "controller", "psiL"), "psiL",
                     "heading error", "psiL (rad)")
     fp.lateral_cg_panel(axes[2], runs)
 
 
 def _speed(ax, runs: Sequence[RunData]) -> None:
-    pan.tracking(ax, runs, lambda r: sig.column(r, "vehicle.vx"), sig.speed_reference,
+    pan.tracking(ax, runs, lambda r: sig.role_series(r, "vehicle", "vx"), sig.speed_reference,
                  ("vx", "vx_ref"), "speed tracking", "speed (m/s)")
 
 
@@ -155,18 +162,29 @@ def _title(runs: Sequence[RunData], kind: str) -> str:
     return f"{kind}: {runs[0].lookup('name', runs[0].label)} ({runs[0].label})"
 
 
-def build_figure(runs: Sequence[RunData], layout: str | None = None) -> tuple[Figure, str]:
+def build_figure(runs: Sequence[RunData], layout: str | None = None,
+                 signals: Sequence[str] = ()) -> tuple[Figure, str]:
     """The figure of one or several runs, and the layout used.
 
     Args:
         runs: loaded runs (at least one); overlaid in order.
         layout: one of LAYOUTS, or None to choose from the first run.
+        signals: glob patterns of signals to draw against time (the "signals"
+            layout, whatever `layout` says); empty: the layout's own signals.
+    Raises:
+        AnalysisError: an unknown layout, or a pattern that matches no recorded signal.
     """
     if not runs:
         raise AnalysisError("no run to draw")
+    if signals:
+        names = select_signals(runs[0], signals)
+        return signals_figure(runs, names, _title(runs, "signals")), "signals"
     layout = layout or choose_layout(runs[0])
     if layout not in LAYOUTS:
         raise AnalysisError(f"layout: expected one of {', '.join(LAYOUTS)}, found {layout!r}")
+    if layout == "signals":
+        names, note = default_signals(runs[0])
+        return signals_figure(runs, names, _title(runs, "signals") + (f"\n{note}" if note else "")), layout
     if layout == "following":
         return following_figure(runs, _title(runs, "vehicle following")), layout
     builders = {"track": track_figure, "manoeuvre": manoeuvre_figure, "speed": speed_figure}
@@ -195,18 +213,21 @@ def save_png(fig: Figure, path: Path) -> Path:
 
 
 def draw_figures(run_dir: str | Path, layout: str | None = None,
-                 run: RunData | None = None) -> list[Path]:
-    """Draw the paper-style figure of a run into its folder.
+                 run: RunData | None = None, signals: Sequence[str] = (),
+                 out: str | Path | None = None) -> list[Path]:
+    """Draw the figure of a run (paper-style for a vehicle run) into its folder.
 
     Args:
         run_dir: the run folder; the PNG is written there as `figure_<layout>.png`.
-        layout: "track", "manoeuvre" or None to choose from the scenario.
+        layout: one of LAYOUTS, or None to choose from the scenario.
         run: `run_dir` already loaded (`load_run`), so a caller that also writes
             the metrics parses signals.csv once; None loads it here.
+        signals: glob patterns of signals to draw against time instead (see build_figure).
+        out: the PNG file to write instead of the run folder's.
 
     Returns:
         The PNG files written.
     """
     run = loaded_run(run_dir, run)
-    fig, layout = build_figure([run], layout)
-    return [save_png(fig, Path(run_dir) / f"figure_{layout}.png")]
+    fig, layout = build_figure([run], layout, signals)
+    return [save_png(fig, Path(out) if out is not None else Path(run_dir) / f"figure_{layout}.png")]

@@ -154,7 +154,7 @@ def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False
             drawn = True
     _cones(ax, runs[0])
     if not drawn:
-        _missing(ax, "vehicle.x, vehicle.y")
+        _missing(ax, ", ".join(runs[0].role_column("vehicle", s) for s in ("x", "y")))
     if equal:
         ax.set_aspect("equal", adjustable="datalim")
     _finish(ax, title, "x (m)", "y (m)")
@@ -168,7 +168,7 @@ def zoom_map(ax: Axes, runs: Sequence[RunData]) -> None:
 
 def friction(ax: Axes, runs: Sequence[RunData]) -> None:
     """Friction estimate mu_hat against the true friction (dashed)."""
-    tracking(ax, runs, lambda r: sig.column(r, "controller.mu_hat"),
+    tracking(ax, runs, lambda r: sig.role_series(r, "controller", "mu_hat"),
              lambda r: sig.friction(r)[0], ("mu_hat", "mu (true)"),
              "friction estimate", "mu (-)")
 

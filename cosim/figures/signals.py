@@ -1,9 +1,10 @@
-"""Signals the figures plot, found by convention with fallbacks.
+"""Signals the figures plot, found by role with fallbacks.
 
 Each function returns what a panel draws for one run, or None when the run did
-not record it (the panel then says so instead of failing). Names follow the
-platform's conventions: the plant `vehicle`, the controller `controller`, the
-planner `planner`.
+not record it (the panel then says so instead of failing). Signals are read
+through the run's roles (cosim.scenario.roles): `vehicle.vx` below is the vx of
+the component that plays the vehicle (`metrics.vehicle`, default the component
+named `vehicle`), `controller.*` and `planner.*` likewise.
 """
 
 from __future__ import annotations
@@ -25,18 +26,33 @@ def column(run: RunData, *names: str) -> Series | None:
     return None
 
 
+def role_series(run: RunData, role: str, *signals: str) -> Series | None:
+    """(time, values) of the first of a role's `signals` the run recorded, else None.
+
+    Args:
+        run: the run.
+        role: "vehicle", "controller" or "planner".
+        signals: signal names of that role's component ("vx_ref", ...).
+    """
+    for signal in signals:
+        values = run.role_signal(role, signal)
+        if values is not None:
+            return run.time, values
+    return None
+
+
 def curvature(run: RunData) -> Series | None:
     """Path curvature: controller.rho, else the planner window's first-point kappa."""
-    found = column(run, "controller.rho")
+    found = role_series(run, "controller", "rho")
     if found is not None:
         return found
-    kappa = run.array("planner.ref_kappa")
+    kappa = run.array(run.role_column("planner", "ref_kappa"))
     return None if kappa is None else (kappa.times, kappa.values[:, 0])
 
 
 def speed_reference(run: RunData) -> Series | None:
     """Reference speed: controller.vx_ref, else planner.v_ref."""
-    return column(run, "controller.vx_ref", "planner.v_ref")
+    return role_series(run, "controller", "vx_ref") or role_series(run, "planner", "v_ref")
 
 
 def lateral_cg(run: RunData) -> Series | None:
@@ -47,7 +63,7 @@ def lateral_cg(run: RunData) -> Series | None:
 
 def offset_cg(run: RunData) -> Series | None:
     """yc_cg, the CG's geometric offset from the path; the paper's yc when not recorded."""
-    yc_cg = run.signal("controller.yc_cg")
+    yc_cg = run.role_signal("controller", "yc_cg")
     return lateral_cg(run) if yc_cg is None else (run.time, yc_cg)
 
 
@@ -59,7 +75,7 @@ def friction(run: RunData) -> tuple[Series, str]:
 
 def window(run: RunData, prefix: str) -> tuple[ArraySignal, ArraySignal] | None:
     """The planner's recorded windows `<prefix>_x` and `<prefix>_y`, or None."""
-    xs, ys = run.array(f"planner.{prefix}_x"), run.array(f"planner.{prefix}_y")
+    xs, ys = (run.array(run.role_column("planner", f"{prefix}_{axis}")) for axis in ("x", "y"))
     if xs is None or ys is None or xs.values.shape != ys.values.shape:
         return None
     return xs, ys
@@ -77,7 +93,7 @@ def path_trace(run: RunData, prefix: str) -> Series | None:
 
 def vehicle_mass(run: RunData) -> float:
     """Mass for m * a_ref: the controller's nominal m, else the plant's, else 1500 kg."""
-    for where in ("components.controller.parameters.m", "components.vehicle.parameters.m"):
+    for where in (run.role_path("controller", "parameters.m"), run.role_path("vehicle", "parameters.m")):
         if run.lookup(where) is not None:
             return run.number(where, 1500.0)
     return 1500.0
@@ -89,11 +105,11 @@ def reference_acceleration(run: RunData) -> Series | None:
     From the window `planner.ref_a`, each recorded window gives the value at
     its point nearest to the vehicle's position at that window's time.
     """
-    found = column(run, "controller.a_ref", "controller.ax_ref", "planner.a_ref")
+    found = role_series(run, "controller", "a_ref", "ax_ref") or role_series(run, "planner", "a_ref")
     if found is not None:
         return found
-    a_ref, win = run.array("planner.ref_a"), window(run, "ref")
-    px, py = run.signal("vehicle.x"), run.signal("vehicle.y")  # position, not speed
+    a_ref, win = run.array(run.role_column("planner", "ref_a")), window(run, "ref")
+    px, py = run.role_signal("vehicle", "x"), run.role_signal("vehicle", "y")  # position, not speed
     if a_ref is None or win is None or px is None or py is None or len(run.time) == 0:
         return None
     xs, ys = win

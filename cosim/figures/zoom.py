@@ -29,8 +29,8 @@ ZOOM_MIN_HALF_WIDTH = 0.05   # m: a run with (almost) no error still gets a read
 
 
 def vehicle_xy(run: RunData) -> sig.Series | None:
-    """The CG's world position (vehicle.x, vehicle.y), or None if not recorded."""
-    x, y = run.signal("vehicle.x"), run.signal("vehicle.y")
+    """The CG's world position (the vehicle's x, y), or None if not recorded."""
+    x, y = run.role_signal("vehicle", "x"), run.role_signal("vehicle", "y")
     return None if x is None or y is None else (x, y)
 
 

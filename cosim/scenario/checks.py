@@ -21,6 +21,7 @@ from typing import Any
 
 from cosim.resources import builtin_fmu_names
 from cosim.scenario.known_classes import parameter_problems
+from cosim.scenario.roles import role_problems
 
 #: Built-in plant FMUs, built by the platform on demand: discovered from the folders of fmus/.
 BUILTIN_FMUS: tuple[str, ...] = builtin_fmu_names()
@@ -87,7 +88,7 @@ def semantic_problems(data: Any, base_dir: Path | None) -> list[tuple[Loc, str]]
                 problems += _fmu_problems((section, str(name)), spec, base_dir)
                 if section == "components":
                     problems += parameter_problems((section, str(name)), spec)
-    return problems
+    return problems + role_problems(data)
 
 
 def _name_problems(section: str, name: Any, seen: dict[str, str]) -> list[tuple[Loc, str]]:

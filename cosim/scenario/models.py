@@ -21,6 +21,7 @@ from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Di
 
 from cosim.errors import Problem, ScenarioError
 from cosim.scenario.checks import BUILTIN_FMUS, semantic_problems, whole_ticks
+from cosim.scenario.roles import MetricRoles
 from cosim.scenario.sources import SOURCE_CLASSES, SourceSpec
 from cosim.scenario.yaml_lines import LineMap, format_path
 
@@ -245,8 +246,9 @@ class RecordSpec(BaseModel):
                 and not any(fnmatch.fnmatchcase(signal, g) for g in self.exclude))
 
 
-class MetricsSpec(BaseModel):
-    """Settings of the run metrics (cosim.analysis.metrics): transient to skip, cones, body size."""
+class MetricsSpec(MetricRoles):
+    """Settings of the run metrics (cosim.analysis.metrics): which component plays which role
+    (cosim.scenario.roles), transient to skip, cones, body size."""
 
     model_config = STRICT
     skip_s: NonNegativeFloat = Field(0.0, description="initial transient left out of the "

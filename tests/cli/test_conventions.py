@@ -68,9 +68,9 @@ def test_doc_examples_are_quoted_so_they_paste():
 
 
 def _set_values(command: str) -> list[str]:
-    """The values given to --set / --vary that are not quoted."""
+    """The values given to --set / --vary / --signals that are not quoted."""
     values = []
-    for match in re.finditer(r"--(?:set|vary)[ =](\S+)", command):
+    for match in re.finditer(r"--(?:set|vary|signals)[ =](\S+)", command):
         value = match.group(1)
         if not value.startswith(("'", '"')):
             values.append(value)

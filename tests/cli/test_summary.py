@@ -38,6 +38,18 @@ def test_metric_rows_known_first_in_canonical_order_then_component_metrics():
     ]
 
 
+def test_signal_statistics_come_by_signal_with_the_signals_unit():
+    metrics = {"max(ball.v)": 4.0, "ball.state_events": 6.0, "min(ball.h)": 0.0,
+               "final(ball.h)": 0.5, "min(ball.v)": -4.5}
+    assert metric_rows(metrics, {"ball.h": "m", "ball.v": "m/s"}) == [
+        ("min(ball.h)", "0", "m", "smallest value of ball.h"),
+        ("final(ball.h)", "0.5", "m", "value at the last tick of ball.h"),
+        ("min(ball.v)", "-4.5", "m/s", "smallest value of ball.v"),
+        ("max(ball.v)", "4", "m/s", "largest value of ball.v"),
+        ("ball.state_events", "6", "", "reported by ball"),
+    ]
+
+
 def test_print_summary_shows_both_tables(tmp_path: Path):
     result = RunResult(tmp_path, "ok", None, 4500, 45.0, 2.25, 20.0,
                        {"rms_yc": 0.0034863380946407495, "controller.steps": 4501.0},

@@ -54,6 +54,7 @@ def test_cheap_subset_of_the_tables_matches_a_fresh_run(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(4 * 3600)  # the whole matrix: far beyond the suite's 300 s per test
 def test_every_generated_table_matches_a_fresh_run(tmp_path):
     rows = run_matrix(tmp_path, echo=False)
     generated = dt.blocks(rows, dt.run_satory_variants(tmp_path, echo=False))
