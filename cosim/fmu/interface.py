@@ -263,9 +263,11 @@ def _parameter_info(var: ModelVariable) -> ParameterInfo:
 
 
 def _port(name: str, var: ModelVariable) -> Port:
-    """A Port for a numeric input or output (arrays: size is the product of the shape)."""
+    """A Port for a numeric input or output (arrays: size is the product of the shape;
+    an array's default is its start value when every element starts the same, else 0)."""
     size = math.prod(var.shape) if var.shape else 1
-    start = _start_value(var.start) if size == 1 else None
+    starts = {_start_value(s) for s in str(var.start).split()} if var.start is not None else set()
+    start = starts.pop() if len(starts) == 1 else None
     return Port(name=name, size=size, unit=_unit(var), description=var.description or "",
                 default=start if start is not None else 0.0, type=var.type)
 
