@@ -48,8 +48,9 @@ class Port:
         description: one line for humans and for the recorder's manifest.
         default: value an unconnected input holds (scalars; arrays get zeros).
         type: the FMI type of the signal's values ("Float64" for Python
-            components; an FMU's variable type, e.g. "Int32", "Boolean", see
-            `cosim.signal_types`); the store holds every type as float64.
+            components and FMI 2 Real; else an FMU's variable type, e.g.
+            "Integer", "Int32", "Boolean", see `cosim.signal_types`); the store
+            holds every type as float64.
     """
 
     name: str

@@ -25,7 +25,7 @@ from fmpy.model_description import ModelVariable
 
 from cosim.component import Port
 from cosim.errors import FmuInterfaceError, did_you_mean
-from cosim.signal_types import FLOAT_TYPES, NOT_RECORDED_TYPES, NUMERIC_TYPES
+from cosim.signal_types import FLOAT64, FLOAT_TYPES, NOT_RECORDED_TYPES, NUMERIC_TYPES
 
 if TYPE_CHECKING:
     from cosim.scenario.models import Scenario
@@ -269,7 +269,8 @@ def _port(name: str, var: ModelVariable) -> Port:
     starts = {_start_value(s) for s in str(var.start).split()} if var.start is not None else set()
     start = starts.pop() if len(starts) == 1 else None
     return Port(name=name, size=size, unit=_unit(var), description=var.description or "",
-                default=start if start is not None else 0.0, type=var.type)
+                default=start if start is not None else 0.0,
+                type=FLOAT64 if var.type in FLOAT_TYPES else var.type)  # FMI 2 Real is Float64
 
 
 def _start_value(text: Any) -> float | None:

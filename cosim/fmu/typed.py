@@ -31,7 +31,7 @@ from cosim.fmu.host import FmuComponent
 from cosim.signal_types import FLOAT_TYPES, inexact_integer, integer_problem, is_integer
 
 #: FMI type -> (C function suffix, ctypes type)
-_FMI2 = {"Real": ("Real", ctypes.c_double), "Integer": ("Integer", ctypes.c_int),
+_FMI2 = {"Float64": ("Real", ctypes.c_double), "Integer": ("Integer", ctypes.c_int),
          "Enumeration": ("Integer", ctypes.c_int), "Boolean": ("Boolean", ctypes.c_int)}
 _FMI3 = {"Float64": ("Float64", ctypes.c_double), "Float32": ("Float32", ctypes.c_float),
          "Int8": ("Int8", ctypes.c_int8), "UInt8": ("UInt8", ctypes.c_uint8),
