@@ -164,6 +164,8 @@ class FmuComponent:
             fmu.exitInitializationMode()
             self._initialized = True
             return self._get_outputs()
+        except ComponentFailure:  # a value no signal can hold (cosim.fmu.typed): said already
+            raise
         except Exception as exc:  # fmpy raises FMICallException or plain Exception
             raise self._failure(None, t0, exc) from exc
 

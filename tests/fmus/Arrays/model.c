@@ -48,7 +48,9 @@ fmi3Instance fmi3InstantiateCoSimulation(
     (void)nRequiredIntermediateVariables; (void)instanceEnvironment; (void)logMessage;
     (void)intermediateUpdate;
     if (strcmp(instantiationToken, "{a7e2c1d0-3b4f-4e5a-9c6d-7e8f90a1b2c3}") != 0) return NULL;
-    return calloc(1, sizeof(Instance));
+    Instance *inst = calloc(1, sizeof(Instance));
+    if (inst != NULL) inst->u[0] = inst->u[1] = 1.0; /* the start values of u */
+    return inst;
 }
 
 void fmi3FreeInstance(fmi3Instance instance) { free(instance); }
