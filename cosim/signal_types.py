@@ -77,3 +77,33 @@ def integer_problem(value: float, type_name: str) -> str | None:
 def inexact_integer(value: int) -> bool:
     """Whether a 64-bit integer would be rounded in float64."""
     return abs(value) > EXACT_LIMIT and int(float(value)) != value
+
+
+#: the README's rows: (FMI 2 / FMI 3 names, the types, what else happens)
+TABLE_ROWS = (
+    ("Real / Float64", ("Float64",), ""),
+    ("Float32", ("Float32",), ""),
+    ("Integer, Enumeration / Int8, UInt8, Int16, UInt16, Int32, UInt32, Enumeration",
+     ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Enumeration"),
+     "FMI 3 Enumeration is read as Int64: a value beyond 2^53 fails as for Int64"),
+    ("Boolean / Boolean", ("Boolean",), ""),
+    ("Int64, UInt64", WIDE_TYPES, "a value beyond 2^53 that float64 would round fails the run, "
+     "naming component, signal, tick and value, exit 1"),
+    ("String, Binary", NOT_RECORDED_TYPES, "one warning line at validate and run start; "
+     "`not_recorded` in the manifest"),
+)
+
+
+def types_table() -> str:
+    """The README's table of what happens to each FMI type (markdown)."""
+    lines = ["| FMI type (FMI 2 / FMI 3) | in the CSV files | into a Float64 input | also |",
+             "|---|---|---|---|"]
+    for names, types, note in TABLE_ROWS:
+        if not set(types) <= set(NUMERIC_TYPES):
+            text, into = "not recorded", "cannot be connected"
+        else:
+            text = "integer" if all(map(is_integer, types)) else "repr of the float"
+            exact = all(exact_into(t, FLOAT64) for t in types)
+            into = "exact" if exact else "needs `convert: float`"
+        lines.append(f"| {names} | {text} | {into} | {note} |")
+    return "\n".join(lines) + "\n"
