@@ -4,9 +4,9 @@ Value references are resolved once from the FMU's interface (canonical names,
 see `cosim.fmu.interface`); each step sets the held inputs, calls doStep from
 the previous communication point and reads the outputs through preallocated
 ctypes arrays: Float64/Real scalars only (an FMU with ports of other types or
-FMI 3 arrays is hosted by its subclass in `cosim.fmu.typed`, chosen at setup so
-that this step path stays as it is). Every FMI error becomes a `ComponentFailure` carrying the last
-messages the FMU logged (logging is always on; with `log_file` every message
+FMI 3 arrays is hosted by the subclass in `cosim.fmu.typed`, chosen at setup so
+that this step path stays as it is). Every FMI error becomes a `ComponentFailure`
+carrying the last messages the FMU logged (logging is always on; with `log_file` every message
 also goes to the run's run.log, warnings and errors to the terminal too).
 
 FMI call sequence: after a Fatal status no FMI function is called any more
