@@ -6,8 +6,9 @@ the previous communication point and reads the outputs through preallocated
 ctypes arrays: Float64/Real scalars only (an FMU with ports of other types or
 FMI 3 arrays is hosted by the subclass in `cosim.fmu.typed`, chosen at setup so
 that this step path stays as it is). Every FMI error becomes a `ComponentFailure`
-carrying the last messages the FMU logged (logging is always on; with `log_file` every message
-also goes to the run's run.log, warnings and errors to the terminal too).
+carrying the last messages the FMU logged (logging is always on; with `log_file`
+every message also goes to the run's run.log, warnings and errors to the terminal
+too).
 
 FMI call sequence: after a Fatal status no FMI function is called any more
 (not even freeInstance, which FMI forbids then); after an Error only
