@@ -95,19 +95,15 @@ def _enumeration_faulty(faulty: Path, target: Path) -> Path:
     return target
 
 
-OPEN_LOOP = """\
-name: typed
-duration: 0.5
-tick: 0.1
-components:
-  plant:
-    fmu: {fmu}
-    parameters: {{fault_time: 100}}
-sources:
-  k: {{kind: constant, value: -7}}
-connections:
-  - {{from: k.value, to: plant.k_in, convert: float}}
-"""
+def _faulty_scenario(fmu: Path, sources: str, connections: str, more: str = "") -> str:
+    """0.5 s in ticks of 0.1 s of the Faulty FMU `plant` (no fault), the `more` components,
+    sources and connections (YAML lines)."""
+    return (f"name: typed\nduration: 0.5\ntick: 0.1\ncomponents:\n  plant:\n    fmu: {fmu}\n"
+            f"    parameters: {{fault_time: 100}}\n{more}sources:\n{sources}"
+            f"connections:\n{connections}")
+
+
+CONVERTED_K = "  - {from: k.value, to: plant.k_in, convert: float}\n"
 
 
 @pytest.mark.parametrize("version", [2, 3])
@@ -116,7 +112,8 @@ def test_faulty_typed_outputs_equal_fmpy_and_are_typed_in_the_manifest(
     fmu = faulty_fmus["Faulty", version]
     if version == 2:
         fmu = _enumeration_faulty(fmu, tmp_path / "FaultyEnum.fmu")
-    out = _run(tmp_path, OPEN_LOOP.format(fmu=fmu))
+    out = _run(tmp_path, _faulty_scenario(fmu, "  k: {kind: constant, value: -7}\n",
+                                          CONVERTED_K))
     expected = _fmpy(fmu, FAULTY_OUTPUTS, fault_time=100, k_in=-7)
     for name in FAULTY_OUTPUTS:
         assert _same_as_fmpy(_column(out / "signals.csv", f"plant.{name}"), expected[name],
@@ -173,23 +170,10 @@ def test_fmi3_typed_and_array_outputs_equal_fmpy(tmp_path, arrays_fmu) -> None:
 
 
 def test_inproc_zenoh_and_isolated_give_identical_files(tmp_path, arrays_fmu, faulty_fmus) -> None:
-    closed_loop = f"""\
-name: loop
-duration: 0.5
-tick: 0.1
-components:
-  plant:
-    fmu: {faulty_fmus["Faulty", 3]}
-    parameters: {{fault_time: 100}}
-  ctl:
-    python: tests.helpers.components:PController
-sources:
-  ref: {{kind: constant, value: 4.0}}
-connections:
-  - plant.ticks -> ctl.y
-  - ref.value -> ctl.ref
-  - ctl.u -> plant.u
-"""
+    closed_loop = _faulty_scenario(
+        faulty_fmus["Faulty", 3], "  ref: {kind: constant, value: 4.0}\n",
+        "  - plant.ticks -> ctl.y\n  - ref.value -> ctl.ref\n  - ctl.u -> plant.u\n",
+        "  ctl:\n    python: tests.helpers.components:PController\n")
     runs = {(kind, transport): _run(tmp_path, text, transport, f"{kind}-{transport}")
             for kind, text in (("loop", closed_loop),
                                ("arrays", ARRAYS_SCENARIO.format(fmu=arrays_fmu, isolate="")),
@@ -241,19 +225,8 @@ connections:
 
 
 def test_a_non_integer_into_an_integer_input_fails_the_run_at_its_tick(tmp_path, faulty_fmus) -> None:
-    text = f"""\
-name: half
-duration: 0.5
-tick: 0.1
-components:
-  plant:
-    fmu: {faulty_fmus["Faulty", 2]}
-    parameters: {{fault_time: 100}}
-sources:
-  k: {{kind: step, initial: 2, final: 2.5, at: 0.3}}  # the plant reads it one tick later
-connections:
-  - {{from: k.value, to: plant.k_in, convert: float}}
-"""
+    text = _faulty_scenario(faulty_fmus["Faulty", 2],  # the plant reads k one tick later
+                            "  k: {kind: step, initial: 2, final: 2.5, at: 0.3}\n", CONVERTED_K)
     done = _cli(tmp_path, "run", text)
     assert done.returncode == 1, done.stderr
     last = done.stderr.strip().splitlines()[-1]
