@@ -35,6 +35,11 @@ NOT_RECORDED_TYPES = ("String", "Binary")  # listed once as not recorded
 WIDE_TYPES = ("Int64", "UInt64")  # not exactly float64 beyond 2^53
 
 
+def a_type(type_name: str) -> str:
+    """The type name with its article, for messages: "an Int32", "a Float64"."""
+    return f"{'an' if type_name[0] in 'AEIOU' else 'a'} {type_name}"
+
+
 def is_integer(type_name: str) -> bool:
     """Whether a signal of this type holds integers (written to CSV as integers)."""
     return type_name in INTEGER_RANGES
@@ -67,7 +72,7 @@ def integer_problem(value: float, type_name: str) -> str | None:
         type_name: the input's type (a key of INTEGER_RANGES).
     """
     if value != value or value in (float("inf"), float("-inf")) or value != int(value):
-        return f"is not an integer (a {type_name} input takes integer values only)"
+        return f"is not an integer ({a_type(type_name)} input takes integer values only)"
     low, high = INTEGER_RANGES[type_name]
     if not low <= int(value) <= high:
         return f"is outside the range of {type_name} [{low}, {high}]"

@@ -37,7 +37,7 @@ def test_floats_into_integers_and_booleans_need_convert():
 
 def test_integer_inputs_take_integer_values_in_range():
     assert integer_problem(3.0, "Int8") is None and integer_problem(-128.0, "Int8") is None
-    assert integer_problem(2.5, "Integer") == ("is not an integer (a Integer input takes "
+    assert integer_problem(2.5, "Integer") == ("is not an integer (an Integer input takes "
                                                "integer values only)")
     assert integer_problem(float("nan"), "Int32").startswith("is not an integer")
     assert integer_problem(128.0, "Int8") == "is outside the range of Int8 [-128, 127]"

@@ -6,10 +6,10 @@ components' ports: the components and ports exist, the source is an output
 and the destination an input, sizes and units agree, and no input is driven
 twice, and the source's type converts exactly into the destination's
 (`cosim.signal_types.exact_into`: an Int32 output may feed a Float64 input,
-a Float64 output an Integer input only with `convert: float`). An explicit `a.x -> b.y` connection takes precedence over a short form
-for the same input (so `vehicle -> controller` plus one explicit exception
-works); two explicit connections, or two short forms, to one input are an
-error. Every problem is reported at once, with the connection's YAML line.
+a Float64 output an Integer input only with `convert: float`). An explicit
+`a.x -> b.y` connection takes precedence over a short form for the same input
+(so `vehicle -> controller` plus one explicit exception works); two explicit
+connections, or two short forms, to one input are an error. Every problem is reported at once, with the connection's YAML line.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import Any
 
 from cosim.component import Port
 from cosim.errors import Problem, WiringError, did_you_mean
-from cosim.signal_types import FLOAT64, exact_into
+from cosim.signal_types import FLOAT64, a_type, exact_into
 
 PortTable = Mapping[str, tuple[tuple[Port, ...], tuple[Port, ...]]]
 
@@ -168,8 +168,9 @@ def _compatibility(edge: Edge, ports: PortTable, short: bool = False) -> str | N
         return f"scale/offset apply to scalar signals only; this one has {out.size} values"
     source_type = FLOAT64 if transformed else out.type  # scale * x + offset is a float
     if edge.convert is None and not exact_into(source_type, inp.type):
-        return (f"type mismatch{ends}: a {source_type} output into a {inp.type} input is "
-                "not an exact conversion (add convert: float to the connection to accept it)")
+        return (f"type mismatch{ends}: {a_type(source_type)} output into {a_type(inp.type)} "
+                "input is not an exact conversion (add convert: float to the connection to "
+                "accept it)")
     if transformed:
         return None  # the transformation is the unit conversion: the user owns it
     if out.unit and inp.unit and out.unit != inp.unit:

@@ -212,9 +212,9 @@ connections:
         assert "Traceback" not in done.stderr
         scenario = tmp_path / "s.yaml"
         assert f"{scenario}:10: connections[0]: k.value -> plant.k_in: type mismatch: a Float64 " \
-               "output into a Int32 input is not an exact conversion (add convert: float to " \
+               "output into an Int32 input is not an exact conversion (add convert: float to " \
                "the connection to accept it)" in done.stderr
-        assert f"{scenario}:11: connections[1]: plant.count -> ctl.y: type mismatch: a Int64 " \
+        assert f"{scenario}:11: connections[1]: plant.count -> ctl.y: type mismatch: an Int64 " \
                "output into a Float64 input" in done.stderr
     converted = text.replace("- k.value -> plant.k_in", "- {from: k.value, to: plant.k_in, "
                              "convert: float}").replace("- plant.count -> ctl.y",
@@ -231,7 +231,7 @@ def test_a_non_integer_into_an_integer_input_fails_the_run_at_its_tick(tmp_path,
     assert done.returncode == 1, done.stderr
     last = done.stderr.strip().splitlines()[-1]
     assert last == ("run failed: component 'plant' failed at tick 4 (t=0.4 s): input 'k_in' = 2.5 "
-                    "is not an integer (a Integer input takes integer values only)"), last
+                    "is not an integer (an Integer input takes integer values only)"), last
     assert _column(tmp_path / "cli-run" / "signals.csv", "plant.k_twice") == [0.0, 4.0, 4.0, 4.0]
     cause = json.loads((tmp_path / "cli-run" / "manifest.json").read_text())["cause"]
     assert (cause["kind"], cause["signal"], cause["tick"]) == ("value", "k_in", 4)
