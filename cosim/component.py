@@ -47,6 +47,10 @@ class Port:
         unit: SI unit string as in the FMU unit definitions ("m", "rad", "m/s", "1").
         description: one line for humans and for the recorder's manifest.
         default: value an unconnected input holds (scalars; arrays get zeros).
+        type: the FMI type of the signal's values ("Float64" for Python
+            components and FMI 2 Real; else an FMU's variable type, e.g.
+            "Integer", "Int32", "Boolean", see `cosim.signal_types`); the store
+            holds every type as float64.
     """
 
     name: str
@@ -54,6 +58,7 @@ class Port:
     unit: str = "1"
     description: str = ""
     default: float = 0.0
+    type: str = "Float64"
 
     def zero(self) -> Value:
         """The default value of this port (float or zero array)."""

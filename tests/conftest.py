@@ -26,3 +26,12 @@ def faulty_fmus(tmp_path_factory) -> FaultyFmus:
     """tests/fmus/Faulty and FaultyOnce as FMI 2.0 / 3.0 FMUs, built on first use:
     faulty_fmus["Faulty", 2] is a path."""
     return FaultyFmus(tmp_path_factory.mktemp("faulty"))
+
+
+@pytest.fixture(scope="session")
+def arrays_fmu(tmp_path_factory) -> Path:
+    """tests/fmus/Arrays (hand-written FMI 3.0: arrays, 64-bit integers, Enumeration, String)."""
+    from tests.helpers.fmus import build_handwritten_fmu
+    from tests.helpers.paths import TEST_FMUS_DIR
+
+    return build_handwritten_fmu(TEST_FMUS_DIR / "Arrays", tmp_path_factory.mktemp("arrays"))

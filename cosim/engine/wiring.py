@@ -4,10 +4,12 @@
 the input of b with the same name) and checks every connection against the
 components' ports: the components and ports exist, the source is an output
 and the destination an input, sizes and units agree, and no input is driven
-twice. An explicit `a.x -> b.y` connection takes precedence over a short form
-for the same input (so `vehicle -> controller` plus one explicit exception
-works); two explicit connections, or two short forms, to one input are an
-error. Every problem is reported at once, with the connection's YAML line.
+twice, and the source's type converts exactly into the destination's
+(`cosim.signal_types.exact_into`: an Int32 output may feed a Float64 input,
+a Float64 output an Integer input only with `convert: float`). An explicit
+`a.x -> b.y` connection takes precedence over a short form for the same input
+(so `vehicle -> controller` plus one explicit exception works); two explicit
+connections, or two short forms, to one input are an error. Every problem is reported at once, with the connection's YAML line.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from typing import Any
 
 from cosim.component import Port
 from cosim.errors import Problem, WiringError, did_you_mean
+from cosim.signal_types import FLOAT64, a_type, exact_into
 
 PortTable = Mapping[str, tuple[tuple[Port, ...], tuple[Port, ...]]]
 
@@ -28,6 +31,7 @@ class Edge:
 
     `scale` and `offset`, when given, make the input read scale * x + offset (each
     only where given: x * scale, x + offset); None leaves the value untouched.
+    `convert` ("float") accepts types whose conversion is not exact.
     """
 
     src: str
@@ -37,6 +41,7 @@ class Edge:
     delay: int = 0
     scale: float | None = None
     offset: float | None = None
+    convert: str | None = None
 
 
 @dataclass(frozen=True)
@@ -100,7 +105,8 @@ def _resolve_one(connection: Any, ports: PortTable,
     if messages:
         return [], [f"{text}: {m}" for m in messages]
     edge = Edge(connection.src_component, connection.src_port, connection.dst_component,
-                connection.dst_port, connection.delay, connection.scale, connection.offset)
+                connection.dst_port, connection.delay, connection.scale, connection.offset,
+                getattr(connection, "convert", None))
     mismatch = _compatibility(edge, ports)
     return ([], [f"{text}: {mismatch}"]) if mismatch else ([edge], [])
 
@@ -109,7 +115,8 @@ def _expand_short(connection: Any, ports: PortTable, text: str) -> tuple[list[Ed
     """Edges of `a -> b`: every output of a with the name of an input of b."""
     src, dst = connection.src_component, connection.dst_component
     inputs = {p.name for p in ports[dst][0]}
-    edges = [Edge(src, p.name, dst, p.name, connection.delay)
+    edges = [Edge(src, p.name, dst, p.name, connection.delay,
+                  convert=getattr(connection, "convert", None))
              for p in ports[src][1] if p.name in inputs]
     if not edges:
         outs = ", ".join(p.name for p in ports[src][1]) or "none"
@@ -145,7 +152,7 @@ def _port_problem(component: str, port: str, side: str, ports: PortTable,
 
 
 def _compatibility(edge: Edge, ports: PortTable, short: bool = False) -> str | None:
-    """A size or unit mismatch between the two ends of an edge, or None.
+    """A size, type or unit mismatch between the two ends of an edge, or None.
 
     Args:
         edge: the edge; ports: the port table.
@@ -159,6 +166,11 @@ def _compatibility(edge: Edge, ports: PortTable, short: bool = False) -> str | N
     transformed = edge.scale is not None or edge.offset is not None
     if transformed and out.size != 1:
         return f"scale/offset apply to scalar signals only; this one has {out.size} values"
+    source_type = FLOAT64 if transformed else out.type  # scale * x + offset is a float
+    if edge.convert is None and not exact_into(source_type, inp.type):
+        return (f"type mismatch{ends}: {a_type(source_type)} output into {a_type(inp.type)} "
+                "input is not an exact conversion (add convert: float to the connection to "
+                "accept it)")
     if transformed:
         return None  # the transformation is the unit conversion: the user owns it
     if out.unit and inp.unit and out.unit != inp.unit:

@@ -11,7 +11,9 @@ Two kinds of gap are reported, one line each, naming the YAML file and component
   gaps: every scenario without wind or a friction change has them.
 
 `cosim validate` and `cosim run` both call `report_gaps`; with `--strict` the
-gaps are one UserError instead of warnings.
+gaps are one UserError instead of warnings. The FMU outputs that are not
+recorded (String, Binary: `unrecorded_outputs`) are a warning line each in
+both, `--strict` or not: they are no gap in the interface a run needs.
 """
 
 from __future__ import annotations
@@ -81,6 +83,23 @@ def report_gaps(gaps: Sequence[str], strict: bool,
         raise IncompleteInterface("\n".join(f"{gap} (--strict)" for gap in gaps))
     for gap in gaps if on_warning is not None else ():
         on_warning(gap)
+
+
+def unrecorded_outputs(scenario: Any, plans: Sequence[Any]) -> list[str]:
+    """One warning per FMU component with String or Binary outputs: they are not recorded.
+
+    Args:
+        scenario: the validated Scenario (its file and lines).
+        plans: the FMU plans (`name`, `interface.not_recorded`).
+    """
+    lines = []
+    for plan in plans:
+        skipped = getattr(plan.interface, "not_recorded", None) or {}
+        if skipped:
+            listed = ", ".join(f"{name} ({kind})" for name, kind in skipped.items())
+            lines.append(f"{_where(scenario, plan.name)}: output{'s' if len(skipped) > 1 else ''} "
+                         f"not recorded (only numeric signals are): {listed}")
+    return lines
 
 
 def _plants(scenario: Any, ports: Mapping[str, tuple[Sequence[Any], Sequence[Any]]]) -> list[str]:

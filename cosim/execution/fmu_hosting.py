@@ -59,7 +59,7 @@ def host_fmus(scenario: Any, plans: list[Any], out: Path, deadline_of: dict[str,
         deadline_of: component -> call deadline (see `deadlines`).
         fmu_log: `--fmu-log`: every FMU logs to run.log.
     """
-    from cosim.fmu.host import FmuComponent
+    from cosim.fmu.typed import hosted_fmu
 
     hosted: dict[str, Any] = {}
     loaded: set[str] = set()  # model identifiers hosted in this process
@@ -84,8 +84,8 @@ def host_fmus(scenario: Any, plans: list[Any], out: Path, deadline_of: dict[str,
                                             plan.period_ticks, deadline_of[plan.name], log_file)
             continue
         loaded.add(_identifier(plan))
-        hosted[plan.name] = FmuComponent(plan.name, plan.path, plan.interface,
-                                         plan.parameters, plan.period_ticks, log_file)
+        hosted[plan.name] = hosted_fmu(plan.name, plan.path, plan.interface,
+                                       plan.parameters, plan.period_ticks, log_file)
     return hosted
 
 

@@ -169,10 +169,6 @@ def _checked_archive(scenario: Any, name: str, spec: Any, path: Path, interface:
     from cosim.errors import FmuInterfaceError
 
     where = scenario.where(("components", name, "fmu"))
-    arrays = [p.name for p in (*interface.inputs, *interface.outputs) if p.size != 1]
-    if arrays:
-        raise FmuInterfaceError(f"{where}: component {name!r}: array variables of FMU "
-                                f"{path.name} are not supported yet: {', '.join(arrays)}")
     if interface.fmi_type == "ModelExchange" and spec.host != "local":
         raise FmuInterfaceError(f"{scenario.where(('components', name, 'host'))}: a Model "
                                 "Exchange FMU runs in the master's process, not on a worker")

@@ -152,7 +152,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                                fmu_hosting.deadlines(scenario, prepared.names, deadline_s),
                                fmu_log, page, tuple(observers))
             hosted = _host_components(prepared, remote, clock, out, options)
-            _check_gaps(scenario, hosted, strict, on_warning)
+            _check_gaps(scenario, hosted, all_fmus, strict, on_warning)
             if before_tick0 is not None:
                 before_tick0()
             return _execute(prepared, hosted, remote, out, transport, run_id, realtime,
@@ -301,15 +301,18 @@ def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock, ou
     return {name: hosted[name] for name in prepared.names}
 
 
-def _check_gaps(scenario: Any, hosted: dict[str, Any], strict: bool,
+def _check_gaps(scenario: Any, hosted: dict[str, Any], plans: list[Any], strict: bool,
                 on_warning: Callable[[str], None] | None) -> None:
-    """Interface gaps of the hosted components: warnings, or one error with `strict`."""
+    """Interface gaps of the hosted components: warnings, or one error with `strict`;
+    then the FMU outputs (of every plan) that are not recorded, as warnings."""
     from cosim.engine.wiring import resolve_wiring
-    from cosim.execution.completeness import interface_gaps, report_gaps
+    from cosim.execution.completeness import interface_gaps, report_gaps, unrecorded_outputs
 
     ports = {n: (c.inputs, c.outputs) for n, c in hosted.items()}
     edges = resolve_wiring(scenario, ports, _unsupported(hosted))
     report_gaps(interface_gaps(scenario, ports, edges), strict, on_warning)
+    for line in unrecorded_outputs(scenario, plans) if on_warning is not None else ():
+        on_warning(line)
 
 
 def _unsupported(hosted: dict[str, Any]) -> dict[str, Any]:

@@ -36,7 +36,7 @@ def validate_scenario(scenario: Any, limits: RunLimits | None = None,
         UserError describing the first class of problems found.
     """
     from cosim.transport.inproc import construct_component
-    from cosim.execution.completeness import interface_gaps, report_gaps
+    from cosim.execution.completeness import interface_gaps, report_gaps, unrecorded_outputs
     from cosim.execution.prepare import prepare_run
 
     limits = limits or RunLimits()
@@ -47,6 +47,7 @@ def validate_scenario(scenario: Any, limits: RunLimits | None = None,
         checked = _validate_prepared(scenario, prepared, construct_component)
         checked["warnings"] = interface_gaps(scenario, checked["components"], checked["edges"])
         report_gaps(checked["warnings"], strict, None)
+        checked["warnings"] += unrecorded_outputs(scenario, prepared.fmus)
         return checked
     except UserError as exc:
         located = locate_parameter_problem(scenario, exc)

@@ -3,9 +3,12 @@
 Value references are resolved once from the FMU's interface (canonical names,
 see `cosim.fmu.interface`); each step sets the held inputs, calls doStep from
 the previous communication point and reads the outputs through preallocated
-ctypes arrays. Every FMI error becomes a `ComponentFailure` carrying the last
-messages the FMU logged (logging is always on; with `log_file` every message
-also goes to the run's run.log, warnings and errors to the terminal too).
+ctypes arrays: Float64/Real scalars only (an FMU with ports of other types or
+FMI 3 arrays is hosted by the subclass in `cosim.fmu.typed`, chosen at setup so
+that this step path stays as it is). Every FMI error becomes a `ComponentFailure`
+carrying the last messages the FMU logged (logging is always on; with `log_file`
+every message also goes to the run's run.log, warnings and errors to the terminal
+too).
 
 FMI call sequence: after a Fatal status no FMI function is called any more
 (not even freeInstance, which FMI forbids then); after an Error only
@@ -123,10 +126,6 @@ class FmuComponent:
         self.inputs: tuple[Port, ...] = tuple(interface.inputs)
         self.outputs: tuple[Port, ...] = tuple(interface.outputs)
         self.parameters = {str(k): float(v) for k, v in parameters.items()}
-        arrays = [p.name for p in (*self.inputs, *self.outputs) if p.size != 1]
-        if arrays:
-            raise FmuInterfaceError(f"component {name!r}: array variables of FMU "
-                                    f"{self.path.name} are not supported yet: {', '.join(arrays)}")
         self.fmi3 = str(interface.fmi_version).startswith("3")
         vrs = interface.value_references
         self._in_names = [p.name for p in self.inputs]
@@ -166,6 +165,8 @@ class FmuComponent:
             fmu.exitInitializationMode()
             self._initialized = True
             return self._get_outputs()
+        except ComponentFailure:  # a value no signal can hold (cosim.fmu.typed): said already
+            raise
         except Exception as exc:  # fmpy raises FMICallException or plain Exception
             raise self._failure(None, t0, exc) from exc
 

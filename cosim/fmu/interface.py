@@ -25,11 +25,11 @@ from fmpy.model_description import ModelVariable
 
 from cosim.component import Port
 from cosim.errors import FmuInterfaceError, did_you_mean
+from cosim.signal_types import FLOAT64, FLOAT_TYPES, NOT_RECORDED_TYPES, NUMERIC_TYPES
 
 if TYPE_CHECKING:
     from cosim.scenario.models import Scenario
 
-FLOAT_TYPES = ("Real", "Float64")
 SIGNAL_CAUSALITIES = ("input", "output", "parameter")
 
 
@@ -53,14 +53,17 @@ class FmuInterface:
         model_name, model_identifier, guid: from the model description
             (guid is the instantiationToken in FMI 3).
         sha256: hex digest of the .fmu file.
-        inputs, outputs: Float64/Real inputs and outputs as Ports (size > 1
-            for FMI 3 arrays; an input's default is its start value).
+        inputs, outputs: the numeric inputs and outputs as Ports, each with its
+            FMI type (`Port.type`, see `cosim.signal_types`; size > 1 for FMI 3
+            arrays; an input's default is its start value).
         parameters: Float64/Real scalar parameters by name.
         value_references: canonical name -> value reference (inputs, outputs,
             parameters, unsupported ones included).
         fmu_names: canonical name -> the FMU's own variable name.
         unsupported: inputs, outputs and parameters that cannot be connected or
-            set (name -> why, e.g. "Integer"); connecting one is an error.
+            set (name -> why, e.g. "a String variable"); connecting one is an error.
+        not_recorded: String and Binary outputs (name -> type), listed once as
+            not recorded.
         model_description: fmpy's ModelDescription, for instantiating the FMU.
         fmi_type: "CoSimulation" or "ModelExchange": the interface the run uses.
     """
@@ -77,6 +80,7 @@ class FmuInterface:
     value_references: dict[str, int]
     fmu_names: dict[str, str] = field(default_factory=dict)
     unsupported: dict[str, str] = field(default_factory=dict)
+    not_recorded: dict[str, str] = field(default_factory=dict)
     model_description: Any = field(default=None, repr=False, compare=False)
     fmi_type: str = "CoSimulation"
 
@@ -100,7 +104,7 @@ def describe_fmu(path: str | Path, variables: Mapping[str, str] | None = None,
     Raises:
         FmuInterfaceError: not a zip / no modelDescription.xml / invalid XML,
             the interface asked for missing, FMI version other than 2.0 and 3.x, a mapped
-            name missing from the FMU or not a Float64/Real input, output or parameter.
+            name missing from the FMU or not a numeric input, output or parameter.
     """
     fmu = Path(path)
     md = _read_description(fmu)
@@ -110,6 +114,7 @@ def describe_fmu(path: str | Path, variables: Mapping[str, str] | None = None,
     outputs: list[Port] = []
     parameters: dict[str, ParameterInfo] = {}
     unsupported: dict[str, str] = {}
+    not_recorded: dict[str, str] = {}
     refs: dict[str, int] = {}
     for var in md.modelVariables:
         name = names.get(var.name)
@@ -119,6 +124,8 @@ def describe_fmu(path: str | Path, variables: Mapping[str, str] | None = None,
         problem = _unsupported_reason(var)
         if problem:
             unsupported[name] = problem
+            if var.causality == "output" and var.type in NOT_RECORDED_TYPES:
+                not_recorded[name] = var.type
         elif var.causality == "parameter":
             parameters[name] = _parameter_info(var)
         else:
@@ -129,7 +136,7 @@ def describe_fmu(path: str | Path, variables: Mapping[str, str] | None = None,
         sha256=_sha256(fmu), inputs=tuple(inputs), outputs=tuple(outputs),
         parameters=parameters, value_references=refs,
         fmu_names={canonical: fmu_name for fmu_name, canonical in names.items()},
-        unsupported=unsupported, model_description=md, fmi_type=fmi_type)
+        unsupported=unsupported, not_recorded=not_recorded, model_description=md, fmi_type=fmi_type)
 
 
 def _fmi_type(md: Any, kind: str | None, fmu: Path) -> tuple[str, Any]:
@@ -193,9 +200,9 @@ def _canonical_names(model_variables: list[ModelVariable], mapping: dict[str, st
                             "only inputs, outputs and parameters can be mapped")
         elif fmu_name in renamed:
             problems.append(f"{canonical!r} and {renamed[fmu_name]!r} both map to {fmu_name!r}")
-        elif var.type not in FLOAT_TYPES:
+        elif var.type not in NUMERIC_TYPES:
             problems.append(f"{canonical!r} maps to {fmu_name!r} of type {var.type}; "
-                            "only Float64/Real signals can be used")
+                            "only numeric signals can be used")
         else:
             renamed[fmu_name] = canonical
     names = {v.name: renamed.get(v.name, v.name) for v in model_variables
@@ -211,8 +218,10 @@ def _canonical_names(model_variables: list[ModelVariable], mapping: dict[str, st
 
 def _unsupported_reason(var: ModelVariable) -> str | None:
     """Why a variable cannot be connected or set, or None if it can."""
-    if var.type not in FLOAT_TYPES:
-        return f"{var.type} (only Float64/Real signals are supported)"
+    if var.type not in NUMERIC_TYPES:
+        return f"a variable of type {var.type} (only numeric signals are recorded or connected)"
+    if var.causality == "parameter" and var.type not in FLOAT_TYPES:
+        return f"a parameter of type {var.type} (only Float64/Real parameters can be set)"
     if var.causality == "parameter" and var.shape:
         return "an array parameter (only scalar parameters can be set)"
     if any(d is None for d in (var.shape or ())):
@@ -254,11 +263,21 @@ def _parameter_info(var: ModelVariable) -> ParameterInfo:
 
 
 def _port(name: str, var: ModelVariable) -> Port:
-    """A Port for a float input or output (arrays: size is the product of the shape)."""
+    """A Port for a numeric input or output (arrays: size is the product of the shape;
+    an array's default is its start value when every element starts the same, else 0)."""
     size = math.prod(var.shape) if var.shape else 1
-    start = _float_or_none(var.start) if size == 1 else None
+    starts = {_start_value(s) for s in str(var.start).split()} if var.start is not None else set()
+    start = starts.pop() if len(starts) == 1 else None
     return Port(name=name, size=size, unit=_unit(var), description=var.description or "",
-                default=start if start is not None else 0.0)
+                default=start if start is not None else 0.0,
+                type=FLOAT64 if var.type in FLOAT_TYPES else var.type)  # FMI 2 Real is Float64
+
+
+def _start_value(text: Any) -> float | None:
+    """A scalar start value as a float (Booleans: "true"/"false" are 1 and 0)."""
+    if isinstance(text, str) and text.strip().lower() in ("true", "false"):
+        return float(text.strip().lower() == "true")
+    return _float_or_none(text)
 
 
 def _sha256(path: Path) -> str:

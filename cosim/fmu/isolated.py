@@ -37,6 +37,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from cosim.component import Port, Value
 from cosim.errors import ComponentFailure, StopRequested
 
@@ -70,10 +72,9 @@ class IsolatedFmu:
         self.inputs: tuple[Port, ...] = tuple(interface.inputs)
         self.outputs: tuple[Port, ...] = tuple(interface.outputs)
         self.deadline_s = float(deadline_s)
-        self._in_names = [p.name for p in self.inputs]
-        self._out_names = [p.name for p in self.outputs]
-        self._out = struct.Struct(f"={len(self._out_names)}d")
-        self._step_frame = struct.Struct(f"=Icqd{len(self._in_names)}d")
+        self._in, self._outs = _Flat(self.inputs), _Flat(self.outputs)
+        self._out = struct.Struct(f"={self._outs.count}d")
+        self._step_frame = struct.Struct(f"=Icqd{self._in.count}d")
         self._ready = False
         self._busy = False  # a request is out and its reply not read
         config = {"name": name, "path": str(path), "variables": dict(variables),
@@ -101,7 +102,7 @@ class IsolatedFmu:
         if not self._ready:
             self._receive("R", None, t0, READY_TIMEOUT_S)
             self._ready = True
-        values = [inputs[n] for n in self._in_names]
+        values = self._in.flatten(inputs)
         _send(self._tx, b"I", struct.pack(f"=d{len(values)}d", t0, *values))
         return self._outputs(self._receive("start", None, t0, self.deadline_s), None, t0)
 
@@ -109,7 +110,7 @@ class IsolatedFmu:
         """One doStep in the process: a request frame, a reply frame."""
         frame = self._step_frame
         os.write(self._tx, frame.pack(frame.size - 4, b"S", tick, t,
-                                      *[inputs[n] for n in self._in_names]))
+                                      *self._in.flatten(inputs)))
         self._busy = True
         return self._outputs(self._receive("step", tick, t, self.deadline_s), tick, t)
 
@@ -127,7 +128,7 @@ class IsolatedFmu:
 
     def _outputs(self, reply: tuple[bytes, bytes], tick: int | None, t: float) -> dict[str, Value]:
         kind, payload = reply
-        values = dict(zip(self._out_names, self._out.unpack_from(payload)))
+        values = self._outs.mapping(self._out.unpack_from(payload))
         if kind == b"T":
             reason = payload[self._out.size:].decode("utf-8", "replace")
             raise StopRequested(self.name, tick or 0, t, values, reason)
@@ -190,6 +191,37 @@ class IsolatedFmu:
         self._tx = self._rx = -1
 
 
+class _Flat:
+    """Port values <-> the flat float64 run of a frame (an array port: `size` values in a row).
+
+    Args:
+        ports: the ports, in frame order.
+    """
+
+    def __init__(self, ports: tuple[Port, ...]) -> None:
+        self.names = [p.name for p in ports]
+        self.sizes = [p.size for p in ports]
+        self.count = sum(self.sizes)
+        self.scalar = all(size == 1 for size in self.sizes)
+
+    def flatten(self, values: Mapping[str, Value]) -> list[float]:
+        """The values of the ports, in a row."""
+        if self.scalar:
+            return [values[n] for n in self.names]
+        return [x for n in self.names for x in np.ravel(values[n]).tolist()]
+
+    def mapping(self, flat: Any) -> dict[str, Value]:
+        """Port name -> value (arrays as float64 numpy arrays) from a flat row."""
+        if self.scalar:
+            return dict(zip(self.names, flat))
+        out: dict[str, Value] = {}
+        at = 0
+        for name, size in zip(self.names, self.sizes):
+            out[name] = flat[at] if size == 1 else np.array(flat[at:at + size], dtype=np.float64)
+            at += size
+        return out
+
+
 def _send(fd: int, kind: bytes, payload: bytes) -> None:
     data = LENGTH.pack(len(payload) + 1) + kind + payload
     while data:
@@ -234,38 +266,37 @@ def serve(rx: int, tx: int) -> int:
     if frame is None or frame[0] != b"C":
         return 2
     config = json.loads(frame[1])
-    from cosim.fmu.host import FmuComponent
     from cosim.fmu.interface import describe_fmu
+    from cosim.fmu.typed import hosted_fmu
 
     interface = describe_fmu(Path(config["path"]), config["variables"])
-    fmu = FmuComponent(config["name"], config["path"], interface, config["parameters"],
-                       config["period_ticks"], config["log_file"])
+    fmu = hosted_fmu(config["name"], config["path"], interface, config["parameters"],
+                     config["period_ticks"], config["log_file"])
     _send(tx, b"R", b"")
     return _loop(fmu, rx, tx)
 
 
 def _loop(fmu: Any, rx: int, tx: int) -> int:
-    n_in = len(fmu.inputs)
-    ins = [p.name for p in fmu.inputs]
-    outs = [p.name for p in fmu.outputs]
+    ins, outs = _Flat(fmu.inputs), _Flat(fmu.outputs)
+    n_in = ins.count
     step_in = struct.Struct(f"=qd{n_in}d")
-    reply = struct.Struct(f"=Ic{len(outs)}d")
+    reply = struct.Struct(f"=Ic{outs.count}d")
     while (frame := _read_frame(rx)) is not None:
         kind, payload = frame
         tick, t = None, 0.0
         try:
             if kind == b"S":
                 tick, t, *values = step_in.unpack(payload)
-                out = fmu.step(tick, t, dict(zip(ins, values)))
+                out = fmu.step(tick, t, ins.mapping(values))
             elif kind == b"I":
                 t, *values = struct.unpack(f"=d{n_in}d", payload)
-                out = fmu.start(t, dict(zip(ins, values)))
+                out = fmu.start(t, ins.mapping(values))
             else:  # b"Q"
                 _send(tx, b"M", json.dumps(fmu.stop()).encode())
                 return 0
         except StopRequested as request:
             data = reply.pack(reply.size - 4 + len(request.reason.encode()), b"T",
-                              *[request.outputs[n] for n in outs])
+                              *outs.flatten(request.outputs))
             os.write(tx, data + request.reason.encode())
             continue
         except Exception as exc:  # noqa: BLE001 - every failure goes back to the master
@@ -275,7 +306,7 @@ def _loop(fmu: Any, rx: int, tx: int) -> int:
                                         "cause": error.cause if error else repr(exc),
                                         "details": error.details if error else {}}).encode())
             continue
-        os.write(tx, reply.pack(reply.size - 4, b"O", *[out[n] for n in outs]))
+        os.write(tx, reply.pack(reply.size - 4, b"O", *outs.flatten(out)))
     return 0
 
 

@@ -25,11 +25,13 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 
 from cosim.component import Port, Value
 from cosim.errors import ComponentFailure, FmuInterfaceError
 from cosim.fmu.host import FmuLog, instantiate
 from cosim.fmu.solvers import make_solver
+from cosim.fmu.typed import TypedIO, needs_typed_io
 
 
 class ModelExchangeComponent:
@@ -64,7 +66,8 @@ class ModelExchangeComponent:
                                     f"parameter {', '.join(map(repr, missing))}")
         self._in_vr = [vrs[p.name] for p in self.inputs]
         self._out_vr = [vrs[p.name] for p in self.outputs]
-        self._held: list[float] | None = None
+        self._held: list[Any] | None = None
+        self._io: TypedIO | None = None  # ports of other types than Float64, or arrays
         self.log = FmuLog()
         self._fmu: Any = None
         self._solver: Any = None
@@ -103,6 +106,8 @@ class ModelExchangeComponent:
 
     def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Hold the inputs (an input event if they changed), integrate to t, read the outputs."""
+        if self._io is not None:
+            self._io.tick = tick
         try:
             if self._inputs_changed(inputs):
                 self.events["input"] += 1
@@ -176,19 +181,32 @@ class ModelExchangeComponent:
     def _instantiate(self) -> None:
         self._unzipped, self._fmu, self._callbacks = instantiate(
             self.path, self.interface, self.name, self.log, model_exchange=True, logging_on=False)
+        if needs_typed_io(self.interface):
+            self._io = TypedIO(self.name, self._fmu, self.fmi3, self.inputs, self.outputs,
+                               self.interface.value_references)
 
     def _set(self, vrs: list[int], values: list[float]) -> None:
         if vrs:
             (self._fmu.setFloat64 if self.fmi3 else self._fmu.setReal)(vrs, values)
 
     def _inputs_changed(self, inputs: Mapping[str, Value]) -> bool:
-        return [float(inputs[p.name]) for p in self.inputs] != self._held
+        return self._held_values(inputs) != self._held
+
+    def _held_values(self, inputs: Mapping[str, Value]) -> list[Any]:
+        if self._io is None:
+            return [float(inputs[p.name]) for p in self.inputs]
+        return [np.ravel(inputs[p.name]).tolist() for p in self.inputs]
 
     def _set_inputs(self, inputs: Mapping[str, Value]) -> None:
-        self._held = [float(inputs[p.name]) for p in self.inputs]
-        self._set(self._in_vr, self._held)
+        self._held = self._held_values(inputs)
+        if self._io is not None:
+            self._io.set(inputs, self._t_prev)
+        else:
+            self._set(self._in_vr, self._held)
 
     def _get_outputs(self) -> dict[str, Value]:
+        if self._io is not None:
+            return self._io.get(self._t_prev)
         if not self._out_vr:
             return {}
         values = (self._fmu.getFloat64 if self.fmi3 else self._fmu.getReal)(self._out_vr)

@@ -99,8 +99,8 @@ class RemoteFmu(Component):
                  variables: Mapping[str, str] | None = None,
                  parameters: Mapping[str, float] | None = None, period_ticks: int = 1) -> None:
         from cosim.errors import UserError
-        from cosim.fmu.host import FmuComponent
         from cosim.fmu.interface import describe_fmu
+        from cosim.fmu.typed import hosted_fmu
 
         path = Path(fmu_file)
         if sha256_of(path.read_bytes()) != sha256:
@@ -109,8 +109,7 @@ class RemoteFmu(Component):
             interface = describe_fmu(path, dict(variables or {}))
         except UserError as exc:
             raise ComponentError(str(exc)) from None
-        self._fmu = FmuComponent(component, path, interface, dict(parameters or {}),
-                                 period_ticks)
+        self._fmu = hosted_fmu(component, path, interface, dict(parameters or {}), period_ticks)
         self.inputs = tuple(interface.inputs)
         self.outputs = tuple(interface.outputs)
         self._period_ticks = int(period_ticks)

@@ -6,7 +6,9 @@ described by a small JSON header `<stem>.f64.json` (column names, the CSV's
 file name, byte order). This module turns spool rows into the CSV text of the
 recorder's contract: a header line of column names, then one line per row with
 every float written by `repr` (the shortest text that reads back to the same
-float64). It does so either while the run goes on, in a separate process that
+float64), except in the header's `integer_columns` (integer and Boolean
+signals), written as integers ("3", not "3.0"; exact, since the store holds
+only integers that float64 represents exactly). It does so either while the run goes on, in a separate process that
 tails the spool (`main`, so the text formatting runs on the other core), or in
 one pass (`rebuild_csv`, for the recorder's fallback and `cosim recover`).
 A spool starts with a page whose first 8 bytes count the complete rows
@@ -62,6 +64,7 @@ class SpoolHeader:
         byteorder: "little" or "big", as the floats were written.
         data_offset: where the rows start in the spool: `DATA_OFFSET` (a row
             count first), or 0 (whole rows only, as older runs wrote them).
+        integer_columns: the columns written as integers (absent in older runs).
     """
 
     path: Path
@@ -69,6 +72,12 @@ class SpoolHeader:
     csv: str
     byteorder: str
     data_offset: int = 0
+    integer_columns: tuple[str, ...] = ()
+
+    def formatter(self) -> RowFormatter:
+        """A RowFormatter for this spool's rows."""
+        integers = {i for i, name in enumerate(self.columns) if name in self.integer_columns}
+        return RowFormatter(len(self.columns), self.byteorder, integers)
 
     @property
     def spool_path(self) -> Path:
@@ -99,7 +108,8 @@ class SpoolHeader:
 
 
 def write_header(spool_path: Path, csv_name: str, columns: list[str],
-                 data_offset: int = DATA_OFFSET) -> SpoolHeader:
+                 data_offset: int = DATA_OFFSET,
+                 integer_columns: tuple[str, ...] = ()) -> SpoolHeader:
     """Write the JSON header of a spool (atomically) and return it.
 
     Args:
@@ -107,10 +117,12 @@ def write_header(spool_path: Path, csv_name: str, columns: list[str],
         csv_name: the CSV file name, in the same folder.
         columns: column names, "time" first.
         data_offset: where the rows start in the spool (see `SpoolHeader`).
+        integer_columns: columns written as integers.
     """
     path = spool_path.with_name(spool_path.name + ".json")
     data = {"format": SPOOL_FORMAT, "csv": csv_name, "columns": list(columns),
-            "byteorder": sys.byteorder, "data_offset": data_offset}
+            "byteorder": sys.byteorder, "data_offset": data_offset,
+            "integer_columns": list(integer_columns)}
     tmp = path.with_name(path.name + ".tmp")
     try:
         tmp.write_text(json.dumps(data) + "\n", encoding="utf-8")
@@ -118,7 +130,8 @@ def write_header(spool_path: Path, csv_name: str, columns: list[str],
     except OSError:  # a full disk: no half-written .tmp stays behind
         _discard(tmp)
         raise
-    return SpoolHeader(path, tuple(columns), csv_name, sys.byteorder, data_offset)
+    return SpoolHeader(path, tuple(columns), csv_name, sys.byteorder, data_offset,
+                       tuple(integer_columns))
 
 
 def _discard(path: Path) -> None:
@@ -159,11 +172,16 @@ def read_header(path: Path) -> SpoolHeader:
     offset = data.get("data_offset", 0)
     if offset not in (0, DATA_OFFSET):
         raise SpoolError(f"{path}: data_offset: expected 0 or {DATA_OFFSET}, got {offset!r}")
-    return SpoolHeader(Path(path), tuple(columns), csv, byteorder, offset)
+    integers = data.get("integer_columns", [])
+    if not isinstance(integers, list) or not set(integers) <= set(columns[1:]):
+        raise SpoolError(f"{path}: integer_columns: expected a list of columns after the "
+                         f"time, got {integers!r}")
+    return SpoolHeader(Path(path), tuple(columns), csv, byteorder, offset, tuple(integers))
 
 
 class RowFormatter:
-    """Formats whole float64 rows as CSV lines, every float as its repr.
+    """Formats whole float64 rows as CSV lines, every float as its repr
+    (the columns in `integers` as integers).
 
     A row whose values after the time are bit for bit those of the previous
     row (a held array signal, e.g. a planner window that did not change)
@@ -173,12 +191,16 @@ class RowFormatter:
     Args:
         ncols: floats per row (the time first).
         byteorder: byte order of the data given to `format`.
+        integers: indices of the columns (after the time, 0) written as integers.
     """
 
-    def __init__(self, ncols: int, byteorder: str = sys.byteorder) -> None:
+    def __init__(self, ncols: int, byteorder: str = sys.byteorder,
+                 integers: set[int] | frozenset[int] = frozenset()) -> None:
         self.ncols = ncols
         self.swap = byteorder != sys.byteorder
-        self._template = ",%r" * (ncols - 1) + "\n"  # "%r" of a float is exactly repr(float)
+        # "%r" of a float is exactly repr(float); "%d" of an integer-valued float its integer
+        self._template = "".join(",%d" if i in integers else ",%r"
+                                 for i in range(1, ncols)) + "\n"
         self._previous: bytes | None = None  # the previous row's values after the time, as bytes
         self._previous_text = ""
 
@@ -228,7 +250,7 @@ class SpoolTail:
         self.header = header
         self.offset = 0
         self.rows = 0
-        self._formatter = RowFormatter(len(header.columns), header.byteorder)
+        self._formatter = header.formatter()
         self._fd = os.open(header.spool_path, os.O_RDONLY)
         self._csv: IO[str] = open(header.csv_path, "a", encoding="ascii", newline="\n")
 
@@ -276,7 +298,7 @@ def rebuild_csv(header: SpoolHeader) -> tuple[int, int]:
         source = open(spool, "rb")
     except OSError as exc:
         raise SpoolError(f"{spool}: cannot read the spool: {exc.strerror}") from None
-    size, formatter = header.row_bytes, RowFormatter(len(header.columns), header.byteorder)
+    size, formatter = header.row_bytes, header.formatter()
     tmp = header.csv_path.with_name(header.csv + ".tmp")
     try:
         with source, open(tmp, "w", encoding="ascii", newline="\n") as out:

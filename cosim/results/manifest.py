@@ -2,7 +2,9 @@
 
 Written once before tick 0 (status "running") and rewritten at the end (status
 "ok" or "failed" with the error), so even a killed run leaves a manifest. Its
-"signals" entry gives each output's unit and description (`signal_info`).
+"signals" entry gives each output's unit, description, size and FMI type
+(`signal_info`); each FMU's entry lists its outputs that are not recorded
+(String, Binary) under "not_recorded".
 """
 
 from __future__ import annotations
@@ -91,7 +93,8 @@ def base_manifest(scenario: Any, prepared: Any, hosted: dict[str, Any], transpor
 
 
 def signal_info(hosted: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """"component.signal" -> {"unit", "description", "size"} of every output port.
+    """"component.signal" -> {"unit", "description", "size", "type"} of every output port
+    ("type": the FMI type of its values, "Float64" for Python components).
 
     The recorded columns (signals.csv, arrays/) are a subset: `record:` may leave some out.
 
@@ -103,7 +106,8 @@ def signal_info(hosted: dict[str, Any]) -> dict[str, dict[str, Any]]:
         for port in getattr(component, "outputs", ()) or ():
             info[f"{name}.{port.name}"] = {"unit": str(getattr(port, "unit", "") or ""),
                                           "description": str(getattr(port, "description", "")),
-                                          "size": int(getattr(port, "size", 1))}
+                                          "size": int(getattr(port, "size", 1)),
+                                          "type": str(getattr(port, "type", "Float64"))}
     return info
 
 
@@ -117,6 +121,7 @@ def _fmu_entry(plan: Any) -> dict[str, Any]:
         "guid": getattr(interface, "guid", None),
         "fmi_type": getattr(interface, "fmi_type", None),
         "solver": getattr(plan, "solver", None),
+        "not_recorded": dict(getattr(interface, "not_recorded", None) or {}),
         "parameters": dict(plan.parameters),
     }
 

@@ -4,7 +4,8 @@
 `component.signal`, one row per master tick (0 = after initialization). Array
 signals go to `arrays/<component>.<signal>.csv`, one row per step of their
 component. Floats are written with `repr`, the shortest text that reads back to
-the identical float64, so a reload is bit-identical. `write_json` writes the
+the identical float64, so a reload is bit-identical; integer and Boolean
+signals (`Port.type`, `cosim.signal_types`) are written as integers. `write_json` writes the
 manifest and metrics atomically.
 
 Text formatting is too slow for the master's loop, so the loop only writes
@@ -49,6 +50,7 @@ from cosim.errors import RunFolderError
 from cosim.results.csv_writer import (DATA_OFFSET, SPOOL_SUFFIX, SpoolError, SpoolHeader,
                                       rebuild_csv, write_header)
 from cosim.results.jsonfile import write_json, write_json_in_place  # noqa: F401 - re-exported
+from cosim.signal_types import is_integer
 
 SIGNALS_FILE = "signals.csv"
 ARRAYS_DIR = "arrays"
@@ -86,13 +88,16 @@ class _Table:
         columns: column names, "time" first.
         offset / size / period: for an array signal, its slice of the master's
             array buffer and its component's period in ticks.
+        integers: the columns written as integers.
     """
 
     def __init__(self, folder: Path, stem: str, columns: list[str],
-                 offset: int = 0, size: int = 0, period: int = 1) -> None:
+                 offset: int = 0, size: int = 0, period: int = 1,
+                 integers: Sequence[str] = ()) -> None:
         self.offset, self.stop, self.period = offset, offset + size, period
         spool = folder / f"{stem}{SPOOL_SUFFIX}"
-        self.header: SpoolHeader = write_header(spool, f"{stem}.csv", columns)
+        self.header: SpoolHeader = write_header(spool, f"{stem}.csv", columns,
+                                                integer_columns=tuple(integers))
         with open(self.header.csv_path, "w", encoding="ascii", newline="\n") as csv:
             csv.write(self.header.csv_header_line())
         self.row_bytes = self.header.row_bytes
@@ -183,7 +188,9 @@ class Recorder:
             else (lambda values: [values[i] for i in index])
         self._pack_into = struct.Struct(f"={1 + len(index)}d").pack_into
         self._pack_time_into = struct.Struct("=d").pack_into
-        self._signals = _Table(self.out_dir, SIGNALS_FILE[:-len(".csv")], ["time"] + self.columns)
+        integer = {f"{c}.{p}" for (c, p), port in layout.ports.items() if is_integer(port.type)}
+        self._signals = _Table(self.out_dir, SIGNALS_FILE[:-len(".csv")], ["time"] + self.columns,
+                               integers=[n for n in self.columns if n in integer])
         self._tables = [self._signals]
         groups: dict[int, list[_Table]] = {}
         for comp, signal, offset, size in layout.array_signals():
@@ -191,8 +198,9 @@ class Recorder:
             if selected(name, self.include, self.exclude):
                 (self.out_dir / ARRAYS_DIR).mkdir(exist_ok=True)
                 period = master.components[comp].period_ticks
-                table = _Table(self.out_dir / ARRAYS_DIR, name,
-                               ["time"] + [f"{name}[{i}]" for i in range(size)], offset, size, period)
+                cells = [f"{name}[{i}]" for i in range(size)]
+                table = _Table(self.out_dir / ARRAYS_DIR, name, ["time"] + cells, offset, size,
+                               period, cells if name in integer else ())
                 self._tables.append(table)
                 groups.setdefault(period, []).append(table)
         self._array_groups = sorted(groups.items())

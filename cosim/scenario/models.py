@@ -176,6 +176,10 @@ class Connection(BaseModel):
         "the input reads scale * x (+ offset), 1 (null: 1; a.x -> b.y form, scalar signals)"))
     offset: FiniteFloat | None = Field(None, description=(
         "added after scale, in the input's unit (null: 0; a.x -> b.y form, scalar signals)"))
+    convert: Literal["float"] | None = Field(None, description=(
+        "'float': accept types whose conversion is not exact (Float64 -> Integer input, "
+        "Int64 -> Float64); an integer or Boolean input then takes integer values only, else "
+        "the run fails (null: exact conversions only)"))
 
     @model_validator(mode="before")
     @classmethod
@@ -194,7 +198,7 @@ class Connection(BaseModel):
 
     @model_serializer(mode="wrap")
     def _without_unset_transform(self, handler: Any) -> Any:
-        return _drop_none(handler(self), ("scale", "offset"))
+        return _drop_none(handler(self), ("scale", "offset", "convert"))
 
     @property
     def src_component(self) -> str:

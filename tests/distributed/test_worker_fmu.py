@@ -17,6 +17,7 @@ from cosim.fmu.build import ensure_fmu
 from cosim.fmu.host import FmuComponent
 from cosim.fmu.interface import describe_fmu
 from cosim.fmu.remote import fmu_launch, fmu_payload, sha256_of, store_fmu
+from cosim.fmu.typed import hosted_fmu
 from cosim.distributed.worker import Worker
 from cosim.distributed.client import DistributedComponents
 from cosim.distributed.protocol import encode
@@ -62,6 +63,34 @@ def test_fmu_on_worker_matches_local_fmu_bit_for_bit(bicycle):
             assert remote.stop() == local.stop() == {}
         cached = list(agent.worker._fmu_cache.glob("*.fmu"))
         assert [p.name for p in cached] == [f"{sha256_of(path.read_bytes())}.fmu"]
+    finally:
+        agent.close()
+    assert run_processes(run_id) == []
+
+
+def test_typed_and_array_fmu_on_worker_matches_local_bit_for_bit(arrays_fmu):
+    """tests/fmus/Arrays (Int64 ... Boolean, Enumeration, arrays): the worker's ports carry
+    their FMI types, and its outputs are the local typed host's."""
+    interface = describe_fmu(arrays_fmu)
+    endpoint = free_tcp_endpoint()
+    agent = WorkerThread("wa", DeploySettings(listen=[endpoint], auth=shared_auth()), allow=[])
+    agent.worker.allow_fmu = True
+    run_id = f"t-fmu-arrays-{os.getpid()}"
+    local = hosted_fmu("plant", arrays_fmu, interface, {}, 1)
+    try:
+        launch = fmu_launch("plant", arrays_fmu, {}, {}, 1)
+        with DistributedComponents([launch], run_id, 5.0, placement={"plant": "wa"},
+                                   settings=settings_for(endpoint)) as hosted:
+            remote = hosted.components["plant"]
+            assert remote.inputs == local.inputs and remote.outputs == local.outputs
+            assert {p.name: p.type for p in remote.outputs}["count"] == "Int64"
+            first = {"u": np.array([1.0, 1.0]), "k_in": 0.0}
+            assert bits(remote.start(0.0, first)) == bits(local.start(0.0, first))
+            for k in range(1, 51):
+                inputs = {"u": np.array([np.sin(k * TICK), 2.0]), "k_in": float(k % 7)}
+                assert bits(remote.step(k, k * TICK, inputs)) == bits(local.step(k, k * TICK, inputs))
+            remote.stop()
+            local.stop()
     finally:
         agent.close()
     assert run_processes(run_id) == []

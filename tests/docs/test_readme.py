@@ -26,3 +26,12 @@ def test_readme_opens_with_the_two_commands():
     assert "cosim run scenarios/" in block[0] and "pytest" in block[1]
     ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
     assert "-m pytest -q" in ci
+
+
+def test_readme_signal_types_table_is_the_generated_one():
+    from cosim.signal_types import types_table
+
+    text = (ROOT / "README.md").read_text()
+    start = "<!-- generated: signal types (cosim.signal_types.types_table) -->\n"
+    block = text[text.index(start) + len(start):text.index("<!-- end generated: signal types -->")]
+    assert block == types_table()

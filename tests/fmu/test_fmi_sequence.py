@@ -14,16 +14,16 @@ from fmpy.fmi3 import FMU3Slave
 
 from cosim.errors import ComponentFailure, StopRequested, UserError
 from cosim.execution import fmu_hosting
-from cosim.fmu.host import FmuComponent
 from cosim.fmu.interface import describe_fmu
 from cosim.fmu.isolated import IsolatedFmu
+from cosim.fmu.typed import TypedFmuComponent, hosted_fmu
 
 FATAL, ERROR, TERMINATE, WARNINGS = 5, 6, 7, 9
 
 
 def _faulty(path, mode, log_file=None, fault_time=0.03):
-    return FmuComponent("plant", path, describe_fmu(path, {}),
-                        {"fault_mode": mode, "fault_time": fault_time}, 1, log_file)
+    return hosted_fmu("plant", path, describe_fmu(path, {}),
+                      {"fault_mode": mode, "fault_time": fault_time}, 1, log_file)
 
 
 def _run(fmu, ticks, h=0.01):
@@ -136,7 +136,8 @@ def test_a_second_instance_of_a_once_per_process_fmu_is_isolated(faulty_fmus, tm
     scenario = SimpleNamespace(components={"a": spec, "b": spec, "c": spec})
     hosted = fmu_hosting.host_fmus(scenario, plans, tmp_path, {"a": 5, "b": 5, "c": 5}, False)
     try:
-        assert [type(h) for h in hosted.values()] == [FmuComponent, IsolatedFmu, IsolatedFmu]
+        assert [type(h) for h in hosted.values()] == [TypedFmuComponent, IsolatedFmu,
+                                                  IsolatedFmu]
         finals = []
         for fmu in hosted.values():
             rows, ended = _run(fmu, 5)

@@ -33,8 +33,10 @@ FMI2_VARIABLES = """
       initial="calculated"><Real unit="m/s"/></ScalarVariable>
     <ScalarVariable name="delta" valueReference="7" causality="input" variability="continuous">
       <Real unit="rad" start="0"/></ScalarVariable>
+    <ScalarVariable name="label" valueReference="8" causality="output" variability="discrete"
+      initial="exact"><String start="none"/></ScalarVariable>
 """
-FMI2_STRUCTURE = """<ModelStructure><Outputs><Unknown index="2"/></Outputs>
+FMI2_STRUCTURE = """<ModelStructure><Outputs><Unknown index="2"/><Unknown index="8"/></Outputs>
   <InitialUnknowns><Unknown index="2"/></InitialUnknowns></ModelStructure>"""
 
 
@@ -88,14 +90,17 @@ def test_fmi2_interface_is_read_under_canonical_names(tmp_path: Path) -> None:
     assert (iface.model_name, iface.model_identifier, iface.guid) == ("Plant", "Plant", "{1234-abcd}")
     assert iface.sha256 == hashlib.sha256(fmu.read_bytes()).hexdigest()
     # the unit of steer comes from its declaredType; its start value is the input's default
-    assert iface.inputs == (Port("delta_cmd", 1, "rad", "", 0.1), Port("delta", 1, "rad", "", 0.0))
-    assert iface.outputs == (Port("x", 1, "m", "", 0.0),)
+    assert iface.inputs == (Port("delta_cmd", 1, "rad", "", 0.1),
+                            Port("gear", 1, "", "", 1.0, "Integer"), Port("delta", 1, "rad", "", 0.0))
+    assert iface.outputs == (Port("x", 1, "m", "", 0.0),)  # a String is not a signal
+    assert iface.not_recorded == {"label": "String"}
     assert iface.parameters == {"m": ParameterInfo(3, 1500.0, "kg", 100.0, 5000.0)}
     assert iface.value_references == {"delta_cmd": 1, "x": 2, "m": 3, "gear": 4, "wheels": 5,
-                                      "delta": 7}
+                                      "delta": 7, "label": 8}
     assert iface.fmu_names["delta_cmd"] == "steer" and iface.fmu_names["gear"] == "gear"
-    assert set(iface.unsupported) == {"gear", "wheels"}
-    assert "Integer" in iface.unsupported["gear"]
+    assert set(iface.unsupported) == {"wheels", "label"}
+    assert iface.unsupported["wheels"] == ("a parameter of type Integer (only Float64/Real "
+                                           "parameters can be set)")
     assert iface.model_description.coSimulation.modelIdentifier == "Plant"
     assert iface.ports == (iface.inputs, iface.outputs)
 
@@ -164,7 +169,7 @@ def test_mapping_to_missing_variable_names_it_and_suggests(tmp_path: Path) -> No
 
 
 @pytest.mark.parametrize("mapping, expected", [
-    ({"g": "gear"}, "'g' maps to 'gear' of type Integer; only Float64/Real signals can be used"),
+    ({"v": "label"}, "'v' maps to 'label' of type String; only numeric signals can be used"),
     ({"v": "speed"}, "'v' maps to 'speed', a local variable; only inputs, outputs and parameters "
                      "can be mapped"),
     ({"a": "steer", "b": "steer"}, "'b' and 'a' both map to 'steer'"),
@@ -190,8 +195,8 @@ def test_check_parameters_lists_every_problem(tmp_path: Path) -> None:
         check_parameters(iface, {"mm": 1.0, "wheels": 3.0, "m": 99.5}, "vehicle")
     assert str(info.value).splitlines() == [
         "component 'vehicle': FMU 'Plant' has no parameter 'mm' (did you mean 'm'?)",
-        "component 'vehicle': parameter 'wheels' of FMU 'Plant' cannot be set: it is Integer "
-        "(only Float64/Real signals are supported)",
+        "component 'vehicle': parameter 'wheels' of FMU 'Plant' cannot be set: it is a "
+        "parameter of type Integer (only Float64/Real parameters can be set)",
         "component 'vehicle': parameter 'm' = 99.5 is below its minimum 100",
     ]
     with pytest.raises(FmuInterfaceError, match="parameter 'm' = 6000 is above its maximum 5000"):

@@ -64,6 +64,9 @@ def test_bouncing_ball_matches_fmpy(tmp_path, test_fmu, version, method) -> None
     assert np.array_equal(ours["time"], ref["time"])
     for name in ("h", "v"):
         assert np.max(np.abs(ours[f"ball.{name}"] - ref[name])) <= ME_TOL, name
+    for name in ("bounces", "resting", "kicked"):  # Int32 / Integer and Booleans: exact
+        assert ours[f"ball.{name}"].tolist() == ref[name].astype(float).tolist(), name
+    assert manifest["signals"]["ball.bounces"]["type"] == ("Integer" if version == 2 else "Int32")
     assert manifest["fmus"]["ball"]["fmi_type"] == "ModelExchange"
     metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
     # impacts at 0.45, 1.08, 1.53, 1.84, 2.05 (rest), 3.82 s; the kick at 3 s

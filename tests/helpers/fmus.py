@@ -212,3 +212,30 @@ connections:
   - {{from: ref.value, to: controller.ref}}
   - controller.u -> plant.u
 """
+
+
+def build_handwritten_fmu(model_dir: Path, out_dir: Path) -> Path:
+    """Build an FMI 3 test FMU written without the framework (e.g. tests/fmus/Arrays):
+    its *.c compiled against fmpy's FMI headers, zipped with its modelDescription.xml.
+
+    Args:
+        model_dir: the folder (C files and modelDescription.xml); its name is the
+            model identifier.
+        out_dir: where `<name>-fmi3.fmu` goes.
+    """
+    import subprocess
+    import tempfile
+    import zipfile
+
+    name = model_dir.name
+    headers = Path(fmpy.__file__).parent / "c-code"
+    target = out_dir / f"{name}-fmi3.fmu"
+    with tempfile.TemporaryDirectory() as work:
+        library = Path(work) / f"{name}.so"
+        subprocess.run(["gcc", "-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Werror",
+                        f"-I{headers}", *map(str, sorted(model_dir.glob("*.c"))), "-lm",
+                        "-o", str(library)], check=True, capture_output=True)
+        with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as archive:
+            archive.write(model_dir / "modelDescription.xml", "modelDescription.xml")
+            archive.write(library, f"binaries/{fmpy.platform_tuple}/{name}.so")
+    return target

@@ -448,3 +448,23 @@ def test_the_writer_converts_a_backlog_in_bounded_pieces(tmp_path):
     assert max(pumped) * header.row_bytes <= csv_writer.CHUNK_BYTES and pumped[0] > 0
     assert tail.rows == 20000
     assert header.csv_path.read_text() == header.csv_header_line() + format_rows(values.tobytes(), 4)
+
+
+def test_a_rebuilt_csv_keeps_the_integer_columns_of_its_spool_header(tmp_path):
+    """`cosim recover` and the recorder's fallback (rebuild_csv) read the header's
+    integer_columns: an integer signal is "3" there too, not "3.0"."""
+    from cosim.results import csv_writer
+
+    spool = tmp_path / "t.f64"
+    csv_writer.write_header(spool, "t.csv", ["time", "a", "n"], data_offset=0,
+                            integer_columns=("n",))
+    spool.write_bytes(np.array([[0.0, 0.5, 3.0], [0.1, 1.5, -4.0]]).tobytes())
+    header = read_header(spool.with_name("t.f64.json"))
+    assert header.integer_columns == ("n",)
+    assert csv_writer.rebuild_csv(header) == (2, 0)
+    assert header.csv_path.read_text() == "time,a,n\n0.0,0.5,3\n0.1,1.5,-4\n"
+    data = json.loads(header.path.read_text())
+    header.path.write_text(json.dumps({**data, "integer_columns": ["time"]}))
+    with pytest.raises(csv_writer.SpoolError, match="integer_columns: expected a list of "
+                                                    "columns after the time, got"):
+        read_header(header.path)

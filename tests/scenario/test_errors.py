@@ -202,3 +202,10 @@ def test_all_problems_come_at_once_in_line_order(tmp_path: Path) -> None:
     assert str(info.value).splitlines()[-1] == (
         f"{path}: description: Input should be a valid string (got 5) "
         "(set by --set description=5)")
+
+
+def test_convert_takes_float_only(tmp_path: Path) -> None:
+    text = GOOD_HEAD + ("  a: {python: x:Y}\nconnections:\n  - {from: a.x, to: b.y, convert: int}\n"
+                        "  - {from: a.x, to: b.z, convert: float}\n")
+    assert problems(tmp_path, text) == [
+        ":7: connections[0].convert: Input should be 'float' (got 'int')"]

@@ -118,11 +118,12 @@ class Layout:
 def ports_to_json(ports: Sequence[Port]) -> list[dict[str, Any]]:
     """Port declarations as JSON-able dicts (for the handshake)."""
     return [{"name": p.name, "size": p.size, "unit": p.unit,
-             "description": p.description, "default": p.default} for p in ports]
+             "description": p.description, "default": p.default, "type": p.type} for p in ports]
 
 
 def ports_from_json(items: Sequence[Mapping[str, Any]]) -> tuple[Port, ...]:
     """Port declarations back from `ports_to_json`."""
     return tuple(Port(name=str(i["name"]), size=int(i["size"]), unit=str(i["unit"]),
-                      description=str(i["description"]), default=float(i["default"]))
+                      description=str(i["description"]), default=float(i["default"]),
+                      type=str(i.get("type", "Float64")))
                  for i in items)
