@@ -273,3 +273,53 @@ def test_check_parquet_available_names_the_field(monkeypatch):
     with pytest.raises(UserError, match=r"^x.yaml: record.format: parquet asked for, but "
                                         r"pyarrow is not installed"):
         check_parquet_available("x.yaml: record.format")
+
+
+CRASH = ("name: crash\nduration: 0.4\ntick: 0.01\n"
+         "record: {every: 3, format: [csv, parquet]}\ncomponents:\n"
+         "  plant:\n    python: tests.helpers.components:Segfault\n"
+         "    parameters: {at: 0.2}\n"
+         "sources:\n  ref: {kind: constant, value: 1.0}\n"
+         "connections:\n  - ref.value -> plant.u\n")
+
+
+@pytest.mark.integration
+@pytest.mark.timeout(120)
+def test_a_master_crash_salvages_the_decimated_csv_and_parquet(tmp_path):
+    from tests.execution.test_fmu_faults import run_cosim
+
+    done, out, left = run_cosim(tmp_path, CRASH, "--transport", "inproc")
+    assert done.returncode == 1 and "killed by SIGSEGV" in done.stderr, done.stderr
+    names, csv = read_signals(out / "signals.csv")  # ticks 0..19 complete: 0, 3, ..., 18, 19
+    assert np.round(csv[:, 0] / 0.01).astype(int).tolist() == [0, 3, 6, 9, 12, 15, 18, 19]
+    table = pq.read_table(out / "signals.parquet")
+    parquet = np.column_stack([c.to_numpy() for c in table.columns])
+    assert table.column_names == names and parquet.tobytes() == csv.tobytes()
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "failed" and manifest["ticks"] == 19
+    assert manifest["recording"]["formats_written"] == ["csv", "parquet"]
+    assert not list(out.glob("*.f64*")) and left == []
+
+
+@pytest.mark.integration
+def test_a_decimated_run_has_the_full_runs_metrics_and_rows(tmp_path):
+    shared = {"duration": 3.0, "record.exclude": ["planner.alt_*"]}
+    full = cosim.run("lane_change", set=shared, out=tmp_path / "full")
+    dec = cosim.run("lane_change", set={**shared, "record.every": 10,
+                                        "record.format": ["csv", "parquet"]},
+                    out=tmp_path / "dec")
+    assert full.status == dec.status == "ok"
+    assert dec.metrics == full.metrics and "max_abs_yc" in dec.metrics  # from every tick
+    assert dec.manifest["recording"]["every"] == 10
+    assert dec.manifest["recording"]["formats"] == ["csv", "parquet"]
+    ticks = list(range(0, 301, 10))
+    assert dec.signals.index.tolist() == full.signals.index[ticks].tolist()
+    assert dec.signals.values.tobytes() == full.signals.iloc[ticks].values.tobytes()
+    assert (tmp_path / "dec" / "signals.parquet").is_file()
+    assert (tmp_path / "dec" / "signals.csv").stat().st_size * 8 < \
+        (tmp_path / "full" / "signals.csv").stat().st_size
+    from cosim.analysis.metrics import analyse_run
+    from cosim.analysis.rundata import load_run
+
+    again = analyse_run(load_run(tmp_path / "dec"))  # a later analysis of the folder says so
+    assert any("every 10-th tick" in note for note in again.notes)
