@@ -1,7 +1,7 @@
 """Reading a run folder for analysis: signals, arrays, manifest, scenario lookups.
 
 The recorder writes `signals.csv` (a `time` column, then `<component>.<signal>`
-columns, one row per master tick), `manifest.json` (the scenario as run and run
+columns, one row per master tick, or per N-th with `record.every`), `manifest.json` (the scenario as run and run
 facts) and `arrays/<component>.<signal>.csv` (`time,0,...,N-1`, one row per
 recorded window), and the same tables as `.parquet` files when the run asked
 for them (read instead of the CSV when present: the same values, faster).

@@ -1,10 +1,11 @@
 """Recording a run into its folder as it goes.
 
 `signals.csv` has a `time` column, then one column per recorded scalar signal
-`component.signal`, one row per master tick (0 = after initialization). Array
-signals go to `arrays/<component>.<signal>.csv`, one row per step of their
-component. Floats are written with `repr`, the shortest text that reads back to
-the identical float64, so a reload is bit-identical. `write_json` writes the
+`component.signal`, one row per master tick (0 = after initialization; with
+`every`, ticks 0, N, 2N, ... and the last). Array signals go to
+`arrays/<component>.<signal>.csv`, one row per step of their component.
+Floats are written with `repr`, the shortest text that reads back to the
+identical float64, so a reload is bit-identical. `write_json` writes the
 manifest and metrics atomically.
 
 Text formatting is too slow for the master's loop, so the loop only writes
