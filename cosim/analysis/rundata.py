@@ -13,6 +13,7 @@ out what a run did not record. A file that exists but cannot be read is an
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 from collections.abc import Sequence
@@ -386,7 +387,7 @@ def with_every_tick(run: RunData, full_signals: tuple[list[str], np.ndarray] | N
         return run
     header, data = full_signals
     columns = {name: data[:, i] for i, name in enumerate(header) if i > 0}
-    return RunData(run.run_dir, data[:, 0], columns, run.manifest, run.label_override)
+    return dataclasses.replace(run, time=data[:, 0], columns=columns, every=1)
 
 
 def loaded_run(run_dir: str | Path, run: RunData | None) -> RunData:
