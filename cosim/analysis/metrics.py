@@ -13,6 +13,10 @@ named `vehicle`), `controller.*` and `planner.*` likewise. A run where no
 component plays a role gets the generic statistics of every signal instead
 (cosim.analysis.generic), not these.
 
+A run recorded with `record: {every: N}` gets its metrics.json from every
+tick (the recorder's spool, `cosim.execution.finish`); a later analysis of its
+folder sees only the recorded rows and says so in its notes.
+
 Definitions (t0 = first tick + `metrics.skip_s` from the scenario, default 0):
 - rms_* : time-weighted RMS, sqrt(integral(v^2 dt) / (t_end - t0)), trapezoid rule.
 - max_abs_* : max |v| over the ticks from t0.
@@ -307,6 +311,10 @@ def analyse_run(run: RunData, skip_s: float | None = None) -> MetricsReport:
             `metrics.skip_s`, default 0.
     """
     report = MetricsReport()
+    if run.every > 1:
+        report.notes.append(f"computed from the recorded rows (every {run.every}-th tick, "
+                            "record.every), not every tick: metrics.json of the run itself "
+                            "was computed from every tick")
     if skip_s is None:
         skip_s = run.number("metrics.skip_s", 0.0)
     if len(run.time) == 0:

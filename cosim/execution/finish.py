@@ -3,7 +3,9 @@
 `analyse_run_folder` parses the run folder once, merges the platform's metrics
 (`cosim.analysis.metrics`) into metrics.json beside what the components
 reported, refreshes the RunResult's metrics from that file, and draws the
-figures. Analysis is best effort after a run that itself succeeded: what
+figures. A decimated run (`record: {every: N}`) is analysed from every tick,
+which the recorder still holds (`RunResult.full_signals`), not from its files.
+Analysis is best effort after a run that itself succeeded: what
 cannot be computed becomes a note, not an error.
 """
 
@@ -24,10 +26,11 @@ def analyse_run_folder(result: Any, figures: bool) -> list[str]:
         figures: draw the PNG figures too.
     """
     from cosim.analysis.metrics import write_metrics
-    from cosim.analysis.rundata import load_run
+    from cosim.analysis.rundata import load_run, with_every_tick
 
     try:
         run = load_run(result.out_dir)  # signals.csv parsed once, for metrics and figures
+        run = with_every_tick(run, getattr(result, "full_signals", None))  # record.every > 1
     except Exception as exc:  # analysis is best effort after a run
         return [f"metrics not computed: {exc}"] + ([f"figures not drawn: {exc}"] if figures else [])
     notes: list[str] = []

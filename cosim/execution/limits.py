@@ -13,6 +13,8 @@ ports are known: in `cosim validate`, and in `cosim run` before tick 0).
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from typing import Any
 
@@ -66,13 +68,28 @@ def estimated_csv_bytes(scenario: Any, layout: Any, periods: dict[str, int]) -> 
         layout: the master's `cosim.engine.signals.Layout`.
         periods: component -> period in ticks (array tables have a row per step).
     """
-    ticks = scenario.total_ticks + 1
+    every = scenario.record.every
+    ticks = scenario.total_ticks // every + 2  # ticks 0, N, 2N, ... and the last
     scalars = sum(1 for name, _ in layout.scalar_columns() if scenario.record.selects(name))
     total = ticks * (1 + scalars)
     for component, signal, _, size in layout.array_signals():
         if scenario.record.selects(f"{component}.{signal}"):
-            total += (ticks // max(periods.get(component, 1), 1) + 1) * (1 + size)
+            period = max(periods.get(component, 1), 1)
+            kept_ticks = math.lcm(period, every)  # an array keeps its rows at multiples of both
+            total += (scenario.total_ticks // kept_ticks + 2) * (1 + size)
     return total * BYTES_PER_VALUE
+
+
+def check_formats(scenario: Any) -> None:
+    """A UserError (before the run folder) when `record.format` asks for Parquet without pyarrow.
+
+    Args:
+        scenario: a validated scenario.
+    """
+    if "parquet" in scenario.record.format:
+        from cosim.results.parquet import check_parquet_available
+
+        check_parquet_available(scenario.where(("record", "format")))
 
 
 def check_recorded_size(scenario: Any, layout: Any, periods: dict[str, int],

@@ -27,7 +27,7 @@ from cosim.errors import UserError
 from cosim.execution import fmu_hosting, supervisor
 from cosim.transport.launch import PythonComponentLaunch
 from cosim.execution.abort import locate_parameter_problem, start_failure_text, write_start_failure
-from cosim.execution.limits import RunLimits, check_recorded_size, check_ticks
+from cosim.execution.limits import RunLimits, check_formats, check_recorded_size, check_ticks
 from cosim.execution.prepare import PreparedRun, component_names, plan_fmu, plan_fmus, plan_launches
 from cosim.engine.startup import StartupClock
 
@@ -57,6 +57,8 @@ class RunResult:
     startup: dict[str, Any] = field(default_factory=dict)  # StartupClock marks and origin
     live: dict[str, Any] | None = None  # {"run_id", "endpoint"} of the live view (zenoh)
     stopped_by: dict[str, Any] | None = None  # {"component", "tick", "time", "reason"}
+    # with record.every > 1: (columns, every tick's row) for the metrics; else None
+    full_signals: tuple[list[str], Any] | None = None
 
     @property
     def signals(self) -> Path:
@@ -124,6 +126,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
     check_run_options(transport, realtime)
     limits = limits or RunLimits()
     check_ticks(scenario, limits)  # before the run folder: a refused run leaves nothing
+    check_formats(scenario)
     clock = clock or StartupClock.from_now()
     with contextlib.ExitStack() as stack:
         if prestart is not None:
@@ -404,7 +407,7 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
                        (ticks * scenario.tick / wall) if wall > 0 else float("inf"),
                        metrics, pacer.stats() if pacer else None,
                        clock.marks.get("tick0"), clock.as_dict(), live,
-                       _stopped_by(master.stop_request))
+                       _stopped_by(master.stop_request), recorder.full_signals)
     write_json_in_place(out / "manifest.json", finish_manifest(manifest, result, failure))
     if options.page is not None:
         options.page.done()
@@ -418,6 +421,7 @@ def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
                   options: _Options) -> tuple[Master, Recorder, Any, Any]:
     """Wire the hosted components and attach the observers."""
     from cosim.engine.master import Master
+    from cosim.results.manifest import signal_info
     from cosim.results.recorder import Recorder
     from cosim.engine.wiring import resolve_wiring
 
@@ -425,7 +429,9 @@ def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
                            _unsupported(hosted))
     page = options.page
     recorder = Recorder(out, scenario.record.include, scenario.record.exclude,
-                        on_writer=page.note_writer if page is not None else None)
+                        on_writer=page.note_writer if page is not None else None,
+                        every=scenario.record.every, formats=scenario.record.format,
+                        column_info=signal_info(hosted))
     pacer = bar = None
     if realtime is not None:
         from cosim.engine.pacing import RealtimePacer

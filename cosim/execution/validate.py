@@ -13,7 +13,7 @@ from typing import Any
 
 from cosim.errors import UserError
 from cosim.execution.abort import locate_parameter_problem
-from cosim.execution.limits import RunLimits, check_recorded_size, check_ticks
+from cosim.execution.limits import RunLimits, check_formats, check_recorded_size, check_ticks
 
 
 def validate_scenario(scenario: Any, limits: RunLimits | None = None,
@@ -41,6 +41,7 @@ def validate_scenario(scenario: Any, limits: RunLimits | None = None,
 
     limits = limits or RunLimits()
     check_ticks(scenario, limits)
+    check_formats(scenario)
     try:
         prepared = prepare_run(scenario)
         prepared.limits = limits

@@ -19,6 +19,15 @@ older run) holds whole rows only, a partial last row being ignored. A row
 whose values are bit-identical to the previous row's (a held planner window)
 reuses that row's text: formatting floats is the whole cost of this module.
 
+Decimation (`record: {every: N}`): the spool holds every row; a table keeps
+the rows at ticks that are multiples of N, plus its last row (`SpoolHeader.kept`).
+Spool row j is at tick j * period (period: ticks per row, 1 for signals.csv,
+the component's period for an array), so the kept rows are every
+`stride`-th row. The last row is known only when the spool is complete, so
+the writer appends it after "close" (or after the master went away); a
+salvage from the spool does the same. The header also carries each column's
+metadata (unit, description), which the other writers (Parquet) use.
+
 Only the standard library is imported, so the process starts fast; it is run
 as a script (`python -S csv_writer.py HEADER...`). Protocol: the CSV files
 already hold their header line; the writer appends the complete rows it finds,
@@ -31,6 +40,7 @@ same and exits 3, leaving the spool for `cosim recover`.
 from __future__ import annotations
 
 import json
+import math
 import os
 import select
 import signal
@@ -65,6 +75,10 @@ class SpoolHeader:
         data_offset: where the rows start in the spool: `DATA_OFFSET` (a row
             count first), or 0 (whole rows only, as older runs wrote them).
         integer_columns: the columns written as integers (absent in older runs).
+        every: keep the rows at ticks that are multiples of `every` (and the last).
+        period: ticks per spool row.
+        formats: the files this spool becomes: "csv", and "parquet" if asked.
+        meta: per column, {"unit", "description"} ({} when not known).
     """
 
     path: Path
@@ -73,6 +87,21 @@ class SpoolHeader:
     byteorder: str
     data_offset: int = 0
     integer_columns: tuple[str, ...] = ()
+    every: int = 1
+    period: int = 1
+    formats: tuple[str, ...] = ("csv",)
+    meta: tuple[dict, ...] = ()
+
+    @property
+    def stride(self) -> int:
+        """Spool rows per kept row: row j is kept when j % stride == 0 (or it is the last)."""
+        return self.every // math.gcd(self.every, self.period)
+
+    def kept(self, rows: int) -> int:
+        """How many of `rows` spool rows the outputs keep (every `stride`-th, and the last)."""
+        if rows <= 0:
+            return 0
+        return (rows - 1) // self.stride + 1 + (1 if (rows - 1) % self.stride else 0)
 
     def formatter(self) -> RowFormatter:
         """A RowFormatter for this spool's rows."""
@@ -108,8 +137,9 @@ class SpoolHeader:
 
 
 def write_header(spool_path: Path, csv_name: str, columns: list[str],
-                 data_offset: int = DATA_OFFSET,
-                 integer_columns: tuple[str, ...] = ()) -> SpoolHeader:
+                 data_offset: int = DATA_OFFSET, integer_columns: tuple[str, ...] = (),
+                 every: int = 1, period: int = 1, formats: tuple[str, ...] = ("csv",),
+                 meta: tuple[dict, ...] = ()) -> SpoolHeader:
     """Write the JSON header of a spool (atomically) and return it.
 
     Args:
@@ -118,11 +148,13 @@ def write_header(spool_path: Path, csv_name: str, columns: list[str],
         columns: column names, "time" first.
         data_offset: where the rows start in the spool (see `SpoolHeader`).
         integer_columns: columns written as integers.
+        every / period / formats / meta: see `SpoolHeader`.
     """
     path = spool_path.with_name(spool_path.name + ".json")
     data = {"format": SPOOL_FORMAT, "csv": csv_name, "columns": list(columns),
             "byteorder": sys.byteorder, "data_offset": data_offset,
-            "integer_columns": list(integer_columns)}
+            "integer_columns": list(integer_columns), "every": every,
+            "period": period, "formats": list(formats), "meta": list(meta)}
     tmp = path.with_name(path.name + ".tmp")
     try:
         tmp.write_text(json.dumps(data) + "\n", encoding="utf-8")
@@ -131,7 +163,7 @@ def write_header(spool_path: Path, csv_name: str, columns: list[str],
         _discard(tmp)
         raise
     return SpoolHeader(path, tuple(columns), csv_name, sys.byteorder, data_offset,
-                       tuple(integer_columns))
+                       tuple(integer_columns), every, period, tuple(formats), tuple(meta))
 
 
 def _discard(path: Path) -> None:
@@ -176,7 +208,45 @@ def read_header(path: Path) -> SpoolHeader:
     if not isinstance(integers, list) or not set(integers) <= set(columns[1:]):
         raise SpoolError(f"{path}: integer_columns: expected a list of columns after the "
                          f"time, got {integers!r}")
-    return SpoolHeader(Path(path), tuple(columns), csv, byteorder, offset, tuple(integers))
+    every, period = data.get("every", 1), data.get("period", 1)
+    for field, value in (("every", every), ("period", period)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise SpoolError(f"{path}: {field}: expected an integer >= 1, got {value!r}")
+    formats = data.get("formats", ["csv"])
+    if not isinstance(formats, list) or not set(formats) <= {"csv", "parquet"}:
+        raise SpoolError(f"{path}: formats: expected a list of 'csv', 'parquet', got {formats!r}")
+    meta = data.get("meta", [])
+    if not isinstance(meta, list) or not all(isinstance(m, dict) for m in meta):
+        raise SpoolError(f"{path}: meta: expected a list of objects, got {meta!r}")
+    return SpoolHeader(Path(path), tuple(columns), csv, byteorder, offset, tuple(integers),
+                       every, period, tuple(formats), tuple(meta))
+
+
+def kept_rows(data: bytes, first: int, header: SpoolHeader) -> tuple[bytes, int]:
+    """The rows of `data` (whole spool rows from row `first`) that the outputs keep.
+
+    The last row of the spool is not among them unless the stride keeps it:
+    `last_row` adds it once the spool is complete.
+
+    Returns:
+        (the kept rows' bytes, their number).
+    """
+    stride, size = header.stride, header.row_bytes
+    rows = len(data) // size
+    if stride == 1:
+        return data, rows
+    start = -first % stride  # the first row index >= first that is a multiple of stride
+    view = memoryview(data)
+    picked = [view[j * size:(j + 1) * size] for j in range(start, rows, stride)]
+    return b"".join(picked), len(picked)
+
+
+def last_row(fd: int, header: SpoolHeader, rows: int) -> bytes:
+    """The spool's last row when the stride skipped it (b"" when it was kept, or no rows)."""
+    if rows == 0 or (rows - 1) % header.stride == 0:
+        return b""
+    size = header.row_bytes
+    return os.pread(fd, size, header.data_offset + (rows - 1) * size)
 
 
 class RowFormatter:
@@ -258,7 +328,7 @@ class SpoolTail:
         """Convert the complete rows written since the last call (at most one chunk).
 
         Returns:
-            the number of rows appended to the CSV.
+            the number of spool rows read (those the stride keeps are appended to the CSV).
         """
         size = self.header.row_bytes
         end = self.header.committed_bytes(self._fd)
@@ -266,16 +336,23 @@ class SpoolTail:
                         self.header.data_offset + self.offset)
         rows = len(data) // size
         if rows:
-            self._csv.write(self._formatter.format(data[:rows * size]))
-            self._csv.flush()
+            kept, count = kept_rows(data[:rows * size], self.offset // size, self.header)
+            self._write(kept, count)
             self.offset += rows * size
-            self.rows += rows
         return rows
 
+    def _write(self, data: bytes, rows: int) -> None:
+        if rows:
+            self._csv.write(self._formatter.format(data))
+            self._csv.flush()
+            self.rows += rows
+
     def drain(self) -> None:
-        """Convert every complete row on disk."""
+        """Convert every complete row on disk, the last one included (the spool is complete)."""
         while self.pump():
             pass
+        last = last_row(self._fd, self.header, self.offset // self.header.row_bytes)
+        self._write(last, 1 if last else 0)
 
     def close(self) -> None:
         """Close the spool and the CSV."""
@@ -289,7 +366,7 @@ def rebuild_csv(header: SpoolHeader) -> tuple[int, int]:
     Args:
         header: the spool's header.
     Returns:
-        (rows written, bytes of a partial last row that were ignored).
+        (CSV rows written, bytes of a partial last spool row that were ignored).
     Raises:
         SpoolError when the spool file is missing or unreadable.
     """
@@ -306,18 +383,21 @@ def rebuild_csv(header: SpoolHeader) -> tuple[int, int]:
             end = header.committed_bytes(source.fileno())
             partial = 0 if header.data_offset else os.fstat(source.fileno()).st_size - end
             source.seek(header.data_offset)
-            done = 0
+            done = written = 0
             while done < end:
                 chunk = source.read(min(CHUNK_BYTES // size * size, end - done))
                 if not chunk:
                     break
-                out.write(formatter.format(chunk))
-                done += len(chunk)
+                kept, count = kept_rows(chunk, done // size, header)
+                out.write(formatter.format(kept))
+                done, written = done + len(chunk), written + count
+            last = last_row(source.fileno(), header, done // size)
+            out.write(formatter.format(last))
         os.replace(tmp, header.csv_path)
     except OSError:  # a full disk: no half-written .tmp stays behind
         _discard(tmp)
         raise
-    return done // size, partial
+    return written + (1 if last else 0), partial
 
 
 def _follow(tails: list[SpoolTail], control: IO[bytes]) -> bool:

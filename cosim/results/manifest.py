@@ -4,7 +4,8 @@ Written once before tick 0 (status "running") and rewritten at the end (status
 "ok" or "failed" with the error), so even a killed run leaves a manifest. Its
 "signals" entry gives each output's unit, description, size and FMI type
 (`signal_info`); each FMU's entry lists its outputs that are not recorded
-(String, Binary) under "not_recorded".
+(String, Binary) under "not_recorded"; its "recording" entry gives the decimation
+and the file formats (`recording_entry`).
 """
 
 from __future__ import annotations
@@ -89,7 +90,21 @@ def base_manifest(scenario: Any, prepared: Any, hosted: dict[str, Any], transpor
         "platform": platform.platform(),
         "packages": dict(package_versions()),
         "signals": signal_info(hosted),
+        "recording": recording_entry(scenario.record),
     }
+
+
+def recording_entry(record: Any) -> dict[str, Any]:
+    """The manifest's "recording": the tick stride, the files asked for, and what the metrics saw.
+
+    Args:
+        record: the scenario's `record` section.
+    """
+    every = int(getattr(record, "every", 1))
+    return {"every": every, "formats": list(getattr(record, "format", ["csv"])),
+            "rows": "every tick" if every == 1 else
+            f"ticks 0, {every}, {2 * every}, ... and the last tick",
+            "metrics_from": "every tick (the recorder's spool, before decimation)"}
 
 
 def signal_info(hosted: dict[str, Any]) -> dict[str, dict[str, Any]]:

@@ -1,11 +1,12 @@
 """Recording a run into its folder as it goes.
 
 `signals.csv` has a `time` column, then one column per recorded scalar signal
-`component.signal`, one row per master tick (0 = after initialization). Array
-signals go to `arrays/<component>.<signal>.csv`, one row per step of their
-component. Floats are written with `repr`, the shortest text that reads back to
-the identical float64, so a reload is bit-identical; integer and Boolean
-signals (`Port.type`, `cosim.signal_types`) are written as integers. `write_json` writes the
+`component.signal`, one row per master tick (0 = after initialization; with
+`every`, ticks 0, N, 2N, ... and the last). Array signals go to
+`arrays/<component>.<signal>.csv`, one row per step of their component.
+Floats are written with `repr`, the shortest text that reads back to the
+identical float64, so a reload is bit-identical; integer and Boolean signals
+(`Port.type`, `cosim.signal_types`) are written as integers. `write_json` writes the
 manifest and metrics atomically.
 
 Text formatting is too slow for the master's loop, so the loop only writes
@@ -21,6 +22,12 @@ process if the writer failed) and removes the spools unless `keep_spool`. So
 a failing component loses nothing before its tick; if the master process
 itself dies, the run's supervisor (`cosim.execution.supervisor`) or `recover`
 (`cosim recover RUN_DIR`, `cosim.results.recover`) rebuilds every CSV from the spools.
+
+With `every` > 1 the spools still hold every tick; the files keep ticks 0,
+N, 2N, ... and the last (`cosim.results.csv_writer`), and after `close`
+`full_signals` maps the whole signals spool for the run's metrics. With
+"parquet" among the formats, `close` also writes `signals.parquet` and
+`arrays/<name>.parquet` from the spools (`cosim.results.parquet`).
 
 A run folder that cannot be written (disk full, read-only, removed mid-run)
 raises one `RunFolderError` naming the folder, the reason and the tick; the
@@ -50,6 +57,7 @@ from cosim.errors import RunFolderError
 from cosim.results.csv_writer import (DATA_OFFSET, SPOOL_SUFFIX, SpoolError, SpoolHeader,
                                       rebuild_csv, write_header)
 from cosim.results.jsonfile import write_json, write_json_in_place  # noqa: F401 - re-exported
+from cosim.results.parquet import write_parquet
 from cosim.signal_types import is_integer
 
 SIGNALS_FILE = "signals.csv"
@@ -86,18 +94,19 @@ class _Table:
         folder: where the CSV, the spool and its header go.
         stem: file name without extension.
         columns: column names, "time" first.
+        output: `every`, `formats` and `meta` of the spool header (`SpoolHeader`).
         offset / size / period: for an array signal, its slice of the master's
             array buffer and its component's period in ticks.
         integers: the columns written as integers.
     """
 
-    def __init__(self, folder: Path, stem: str, columns: list[str],
+    def __init__(self, folder: Path, stem: str, columns: list[str], output: dict[str, Any],
                  offset: int = 0, size: int = 0, period: int = 1,
                  integers: Sequence[str] = ()) -> None:
         self.offset, self.stop, self.period = offset, offset + size, period
         spool = folder / f"{stem}{SPOOL_SUFFIX}"
-        self.header: SpoolHeader = write_header(spool, f"{stem}.csv", columns,
-                                                integer_columns=tuple(integers))
+        self.header: SpoolHeader = write_header(spool, f"{stem}.csv", columns, period=period,
+                                                integer_columns=tuple(integers), **output)
         with open(self.header.csv_path, "w", encoding="ascii", newline="\n") as csv:
             csv.write(self.header.csv_header_line())
         self.row_bytes = self.header.row_bytes
@@ -148,13 +157,24 @@ class Recorder:
             starts (a short run is converted at close, without a process).
         keep_spool: keep the binary spools after the CSV files are complete.
         on_writer: called with the CSV writer process's pid once it starts.
+        every: keep every `every`-th tick in the output files (ticks 0, N, 2N, ...
+            and the last); the spools hold every tick, and after `close`
+            `full_signals` gives them to the analysis when `every` > 1.
+        formats: the output files: ("csv",) or ("csv", "parquet").
+        column_info: "component.signal" -> {"unit", "description"} (the manifest's
+            "signals" entry), written into the spool headers and the Parquet fields.
     """
 
     def __init__(self, out_dir: str | Path, include: Sequence[str] = ("*",),
                  exclude: Sequence[str] = (), flush_interval: float = 0.5,
-                 keep_spool: bool = False, on_writer: Any = None) -> None:
+                 keep_spool: bool = False, on_writer: Any = None, every: int = 1,
+                 formats: Sequence[str] = ("csv",),
+                 column_info: dict[str, dict[str, Any]] | None = None) -> None:
         self.out_dir = Path(out_dir)
         self.include, self.exclude = list(include), list(exclude)
+        self.every, self.formats = every, tuple(formats)
+        self.column_info = column_info or {}
+        self.full_signals: tuple[list[str], np.ndarray] | None = None  # see `every`
         self.flush_interval = flush_interval
         self.keep_spool = keep_spool
         self.on_writer = on_writer
@@ -190,6 +210,7 @@ class Recorder:
         self._pack_time_into = struct.Struct("=d").pack_into
         integer = {f"{c}.{p}" for (c, p), port in layout.ports.items() if is_integer(port.type)}
         self._signals = _Table(self.out_dir, SIGNALS_FILE[:-len(".csv")], ["time"] + self.columns,
+                               self._output(["time"] + self.columns),
                                integers=[n for n in self.columns if n in integer])
         self._tables = [self._signals]
         groups: dict[int, list[_Table]] = {}
@@ -199,13 +220,25 @@ class Recorder:
                 (self.out_dir / ARRAYS_DIR).mkdir(exist_ok=True)
                 period = master.components[comp].period_ticks
                 cells = [f"{name}[{i}]" for i in range(size)]
-                table = _Table(self.out_dir / ARRAYS_DIR, name, ["time"] + cells, offset, size,
-                               period, cells if name in integer else ())
+                columns = ["time"] + cells
+                table = _Table(self.out_dir / ARRAYS_DIR, name, columns,
+                               self._output(columns, name), offset, size, period,
+                               cells if name in integer else ())
                 self._tables.append(table)
                 groups.setdefault(period, []).append(table)
         self._array_groups = sorted(groups.items())
         self._arrays_seen: Any = None
         self._started = time.monotonic()
+
+    def _output(self, columns: list[str], array: str | None = None) -> dict[str, Any]:
+        """The spool header's `every`, `formats` and per-column `meta` (an array's
+        elements share its signal's unit and description)."""
+        meta = [{"unit": "s", "description": "simulation time"}]
+        for column in columns[1:]:
+            info = self.column_info.get(array or column, {})
+            meta.append({"unit": str(info.get("unit", "")),
+                         "description": str(info.get("description", ""))})
+        return {"every": self.every, "formats": self.formats, "meta": tuple(meta)}
 
     def after_tick(self, tick: int, t: float, values: list[float], arrays: np.ndarray) -> None:
         """Write this tick's raw rows into the spools (in the kernel from here on)."""
@@ -299,6 +332,11 @@ class Recorder:
                       file=sys.stderr)
             for table in self._tables:
                 rebuild_csv(table.header)
+        if "parquet" in self.formats:
+            for table in self._tables:
+                write_parquet(table.header)
+        if self.every > 1:
+            self.full_signals = _map_rows(self._signals.header, self._signals.rows)
         if not self.keep_spool:
             for table in self._tables:
                 table.remove_spool()
@@ -353,9 +391,10 @@ class Recorder:
         except (ValueError, KeyError, TypeError):
             return f"CSV writer process gave an unreadable report: {out[:200]!r}"
         for table in self._tables:
-            if counted.get(str(table.header.path)) != table.rows:
+            expected = table.header.kept(table.rows)
+            if counted.get(str(table.header.path)) != expected:
                 return (f"CSV writer process wrote {counted.get(str(table.header.path))} rows "
-                        f"to {table.header.csv_path}, expected {table.rows}")
+                        f"to {table.header.csv_path}, expected {expected}")
         return None
 
 
@@ -374,6 +413,16 @@ def _wait_while_progressing(process: subprocess.Popen[bytes], outputs: list[Path
                 process.kill()
                 process.communicate()
                 return False
+
+
+def _map_rows(header: SpoolHeader, rows: int) -> tuple[list[str], np.ndarray]:
+    """Every row of a complete spool, mapped read-only (file-backed: it stays valid,
+    and costs no memory of its own, after the spool is removed)."""
+    if rows == 0:
+        return list(header.columns), np.empty((0, len(header.columns)))
+    data = np.memmap(header.spool_path, dtype=np.float64, mode="r", offset=header.data_offset,
+                     shape=(rows, len(header.columns)))
+    return list(header.columns), data
 
 
 def read_signals(path: str | Path) -> tuple[list[str], np.ndarray]:

@@ -2,7 +2,9 @@
 
 A run whose master was killed, or whose folder could not be written (a full
 disk), keeps the binary spools of the recorder (`cosim.results.recorder`).
-`recover` turns every spool into its CSV and rewrites the manifest: status
+`recover` turns every spool into its CSV (and its Parquet file when the run
+asked for one: `record.format`; decimated as the run asked, `record.every`)
+and rewrites the manifest: status
 "recovered", the ticks on disk and the time of the last one, so that the
 folder no longer claims to be "running".
 """
@@ -17,6 +19,7 @@ from pathlib import Path
 from cosim.errors import UserError
 from cosim.results.csv_writer import (HEADER_SUFFIX, SPOOL_SUFFIX, SpoolError, SpoolHeader,
                                       read_header, rebuild_csv)
+from cosim.results.parquet import pyarrow_missing, write_parquet
 from cosim.results.recorder import ARRAYS_DIR, SIGNALS_FILE, RunFolderError, write_json
 
 MANIFEST_FILE = "manifest.json"
@@ -29,7 +32,8 @@ def recover(run_dir: str | Path, keep_spool: bool = False) -> list[tuple[Path, i
         run_dir: the run folder.
         keep_spool: keep the spools after the CSV files are written.
     Returns:
-        (CSV path, rows written, bytes of a partial last row ignored) per table.
+        (CSV path, rows written, bytes of a partial last row ignored) per table, then
+        (Parquet path, rows, 0) per table when the run asked for Parquet.
     Raises:
         UserError when the folder holds no spool, a spool cannot be read, or the
         folder cannot be written (RunFolderError: free space, then recover again).
@@ -45,9 +49,11 @@ def recover(run_dir: str | Path, keep_spool: bool = False) -> list[tuple[Path, i
     try:
         headers = [read_header(p) for p in paths]
         done = [(h.csv_path, *rebuild_csv(h)) for h in headers]
+        parquet, not_written = _write_parquet(headers, [rows for _, rows, _ in done])
         signals = next((h for h in headers if h.csv == SIGNALS_FILE), None)
         if signals is not None:
-            _mark_recovered(run_dir / MANIFEST_FILE, signals)
+            _mark_recovered(run_dir / MANIFEST_FILE, signals, bool(parquet), not_written)
+        done += parquet
     except SpoolError as exc:
         raise UserError(str(exc)) from None
     except OSError as exc:
@@ -60,9 +66,22 @@ def recover(run_dir: str | Path, keep_spool: bool = False) -> list[tuple[Path, i
     return done
 
 
-def _mark_recovered(manifest_path: Path, signals: SpoolHeader) -> None:
+def _write_parquet(headers: list[SpoolHeader], rows: list[int]
+                   ) -> tuple[list[tuple[Path, int, int]], str | None]:
+    """The Parquet files of the tables that asked for them, and why they were not
+    written (pyarrow missing here), or None."""
+    wanted = [(h, n) for h, n in zip(headers, rows) if "parquet" in h.formats]
+    missing = pyarrow_missing() if wanted else None
+    if missing is not None:
+        return [], f"parquet: {missing}; only the CSV files were rebuilt"
+    return [(write_parquet(h), n, 0) for h, n in wanted], None
+
+
+def _mark_recovered(manifest_path: Path, signals: SpoolHeader, parquet: bool,
+                    not_written: str | None) -> None:
     """Rewrite the manifest (when there is one) with status "recovered", the ticks on
-    disk and the last tick's time, read from the signals spool."""
+    disk and the last tick's time, read from the signals spool; its "recording" says
+    which files were rebuilt ("formats_written") and why not the others."""
     try:
         manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
@@ -81,6 +100,12 @@ def _mark_recovered(manifest_path: Path, signals: SpoolHeader) -> None:
         "recovered_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(
             timespec="seconds"),
     })
+    recording = manifest.get("recording")
+    recording = dict(recording) if isinstance(recording, dict) else {}
+    recording["formats_written"] = ["csv", "parquet"] if parquet else ["csv"]
+    if not_written is not None:
+        recording["not_written"] = not_written
+    manifest["recording"] = recording
     write_json(manifest_path, manifest)
 
 

@@ -4,7 +4,9 @@ The recorder puts every completed tick into the kernel as the tick completes
 (`cosim.results.recorder`: mmap'd spools with a row count), and the manifest
 of a running run says what ran. `complete_run_folder`, called by the run's
 supervisor (`cosim.execution.supervisor`) once the master is dead, turns the
-spools into the CSV files (every complete row, as `cosim recover` does), and
+spools into the CSV files (every complete row, as `cosim recover` does; and
+the Parquet files if the run asked for them, or the manifest's "recording"
+says why not), and
 rewrites the manifest with status "failed", the error and its cause: how the
 master ended (signal, exit status, deadline, interrupt), the component and
 call under way, the tick and the time.
@@ -41,14 +43,17 @@ def complete_run_folder(folder: Path | None, verdict: dict[str, Any]) -> str:
         recover(folder)
     except UserError:
         pass  # no spool: nothing recorded yet, or already converted
-    rows = _rows(folder / SIGNALS_FILE)
+    recovered = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
+    if "recording" in recovered:  # which files recover wrote (csv, parquet)
+        manifest["recording"] = recovered["recording"]
     scenario = manifest.get("scenario", {})
     t0 = float(manifest.get("start_time", scenario.get("start_time") or 0.0))
     tick = float(scenario.get("tick", 0.0))
-    cause = _cause(verdict, list(manifest.get("step_order", [])), rows, t0, tick)
+    last = _last_tick(folder / SIGNALS_FILE, t0, tick)
+    cause = _cause(verdict, list(manifest.get("step_order", [])), last, t0, tick)
     message = _message(cause)
     manifest.update({"status": "failed", "error": message, "cause": cause,
-                     "ticks": max(rows - 1, 0), "sim_time_s": max(rows - 1, 0) * tick,
+                     "ticks": max(last, 0), "sim_time_s": max(last, 0) * tick,
                      "failed_utc": datetime.datetime.now(datetime.timezone.utc)
                      .isoformat(timespec="seconds"),
                      "completed_by": "supervisor"})
@@ -58,14 +63,19 @@ def complete_run_folder(folder: Path | None, verdict: dict[str, Any]) -> str:
     return message
 
 
-def _rows(path: Path) -> int:
+def _last_tick(path: Path, t0: float, tick: float) -> int:
+    """The last recorded tick (-1: none), from the time of signals.csv's last row, which
+    every run records, decimated (`record.every`) or not."""
     try:
-        return len(read_signals(path)[1])
-    except (OSError, ValueError):
-        return 0
+        times = read_signals(path)[1][:, 0]
+    except (OSError, ValueError, IndexError):
+        return -1
+    if len(times) == 0:
+        return -1
+    return round((times[-1] - t0) / tick) if tick > 0 else len(times) - 1
 
 
-def _cause(verdict: dict[str, Any], order: list[str], rows: int, t0: float,
+def _cause(verdict: dict[str, Any], order: list[str], last_tick: int, t0: float,
            tick: float) -> dict[str, Any]:
     """The manifest's "cause": the verdict with names and times instead of indexes."""
     cause = {k: v for k, v in verdict.items() if k != "call"}
@@ -75,7 +85,7 @@ def _cause(verdict: dict[str, Any], order: list[str], rows: int, t0: float,
         cause.update(component=order[index], call=CALLS.get(kind, "call"),
                      tick=None if kind == CALL_START else k, time=t0 + k * tick)
     else:
-        last = max(rows - 1, 0)
+        last = max(last_tick, 0)
         cause.update(component=None, call=None, tick=last, time=t0 + last * tick)
     return cause
 

@@ -233,7 +233,33 @@ ConnectionEntry = Annotated[
 ]
 
 
-class RecordSpec(BaseModel):
+def _with_csv(formats: list[str]) -> list[str]:
+    if "csv" not in formats:
+        raise ValueError("must include 'csv' (the analysis, `cosim recover` and the "
+                         "supervisor read it); list 'parquet' beside it: [csv, parquet]")
+    if len(set(formats)) != len(formats):
+        raise ValueError(f"lists a format twice: {formats}")
+    return formats
+
+
+class RecordOutput(BaseModel):
+    """How the recorded signals are written: the tick stride and the file formats."""
+
+    model_config = STRICT
+    every: Annotated[int, Field(ge=1, description=(
+        "Record every N-th tick: the files hold ticks 0, N, 2N, ... and always the run's "
+        "last tick (array signals: their rows at those ticks, and their last row). "
+        "Integer >= 1, default 1 (every tick). The run's metrics are still computed "
+        "from every tick."))] = 1
+    format: Annotated[list[Literal["csv", "parquet"]], AfterValidator(_with_csv), Field(
+        description=("Result files: 'csv' (signals.csv, arrays/*.csv; always written) and "
+                     "optionally 'parquet' (signals.parquet, arrays/*.parquet, same rows "
+                     "and float64 values, units in the field metadata; needs pyarrow, the "
+                     "'parquet' extra). Default [csv].")
+    )] = ["csv"]
+
+
+class RecordSpec(RecordOutput):
     """Which signals to record: fnmatch globs over "component.signal"; mcap: also write run.mcap."""
 
     model_config = STRICT

@@ -312,8 +312,8 @@ def test_killed_master_leaves_a_spool_that_recover_turns_into_the_csv(tmp_path):
     script = KILLED_MASTER.format(root=str(REPO_ROOT))
     master_proc = subprocess.Popen([sys.executable, "-c", script, str(out)])
     try:
-        _wait(lambda: (out / "signals.f64.json").exists() and len(_spooled_rows(out)) >= 300,
-              "300 spooled rows")
+        _wait(lambda: (out / "signals.f64").exists() and len(_spooled_rows(out)) >= 300,
+              "300 spooled rows")  # the spool: its header is written just before it
         master_proc.send_signal(signal.SIGKILL)
         master_proc.wait()
         # the orphaned writer sees its stdin close, converts what is on disk and leaves
