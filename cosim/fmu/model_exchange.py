@@ -28,6 +28,7 @@ from typing import Any
 
 from cosim.component import Port, Value
 from cosim.errors import ComponentFailure, FmuInterfaceError
+from cosim.fmu import stepper
 from cosim.fmu.host import FmuLog, instantiate
 from cosim.fmu.solvers import make_solver
 
@@ -175,7 +176,8 @@ class ModelExchangeComponent:
 
     def _instantiate(self) -> None:
         self._unzipped, self._fmu, self._callbacks = instantiate(
-            self.path, self.interface, self.name, self.log, model_exchange=True, logging_on=False)
+            self.path, self.interface, self.name, self.log, model_exchange=True, logging_on=False,
+            shim=stepper.library())  # for its per-instance FMI 2 logger
 
     def _set(self, vrs: list[int], values: list[float]) -> None:
         if vrs:
