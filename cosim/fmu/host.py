@@ -25,7 +25,7 @@ import ctypes
 import shutil
 import sys
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -156,6 +156,7 @@ class FmuComponent:
         self._shim: Any = None  # the stepping shim library, None: fmpy's per-call path
         self._stepper: stepper.Stepper | None = None  # None: the per-call path
         self._pick_inputs = picker(self._in_names)
+        self.value_names = (tuple(self._in_names), tuple(self._out_names))  # the values lane
         self._unzipped: str | None = None
         self._t_prev = 0.0
         self._initialized = False
@@ -183,7 +184,15 @@ class FmuComponent:
             raise self._failure(None, t0, exc) from exc
 
     def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
-        """Set the held inputs, doStep(t_prev, t - t_prev), read the outputs.
+        """Set the held inputs, doStep(t_prev, t - t_prev), read the outputs (see step_values)."""
+        try:
+            held = self._pick_inputs(inputs)
+        except Exception as exc:
+            raise self._failure(tick, t, exc) from exc
+        return dict(zip(self._out_names, self.step_values(tick, t, held)))
+
+    def step_values(self, tick: int, t: float, inputs: Sequence[float]) -> list[float]:
+        """`step` on plain values: inputs in `value_names[0]` order, outputs in `value_names[1]` order.
 
         The hot path calls the FMU's C functions directly (fmpy's wrappers cost
         several microseconds per call): through the shim in one call, else one
@@ -192,14 +201,14 @@ class FmuComponent:
         self.log.time = t
         try:
             if self._stepper is None:
-                return self._step_per_call(tick, t, inputs)
+                return list(self._step_per_call(tick, t, dict(zip(self._in_names, inputs))).values())
             if self._in_names:
-                self._in_val[:] = self._pick_inputs(inputs)
+                self._in_val[:] = inputs
             code = self._shim_call(self._shim_address, self._t_prev, t - self._t_prev)
             if code:
                 self._shim_problem(tick, t, code)
             self._t_prev = t
-            return dict(zip(self._out_names, self._out_val[:]))
+            return self._out_val[:]
         except (ComponentFailure, StopRequested):
             raise
         except Exception as exc:
