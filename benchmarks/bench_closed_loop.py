@@ -103,21 +103,24 @@ def write_scenario(folder: Path, seconds: float, controller: str, manoeuvre: str
 
 
 class StepTimer:
-    """Wraps a host's `step` and adds up the time spent inside it."""
+    """Wraps a host's `step` (and its `step_values`, the master's values lane) and adds up the time inside."""
 
     def __init__(self, hosted) -> None:
-        self.inner = hosted.step
         self.seconds = 0.0
         self.calls = 0
-        hosted.step = self.step
+        self.step = hosted.step = self._timed(hosted.step)
+        if getattr(hosted, "step_values", None) is not None:
+            hosted.step_values = self._timed(hosted.step_values)
 
-    def step(self, tick, t, inputs):
-        """The wrapped step, timed."""
-        start = CLOCK()
-        outputs = self.inner(tick, t, inputs)
-        self.seconds += CLOCK() - start
-        self.calls += 1
-        return outputs
+    def _timed(self, inner):
+        """`inner` (a step or step_values), timed."""
+        def timed(tick, t, inputs):
+            start = CLOCK()
+            outputs = inner(tick, t, inputs)
+            self.seconds += CLOCK() - start
+            self.calls += 1
+            return outputs
+        return timed
 
 
 def timer_cost(calls: int = 20000) -> tuple[float, float]:
@@ -195,7 +198,7 @@ def profile_run(prepared, out: str | None, profiler: str) -> None:
             master.step_tick(k)
 
     def step_in(*files: str):
-        return lambda function, path: function == "step" and Path(path).name in files
+        return lambda function, path: function in ("step", "step_values") and Path(path).name in files
 
     groups = {"FMU step (FmuComponent.step)": step_in("host.py"),
               "controller (*Controller.step)": step_in("backstepping.py", "baselines.py"),
