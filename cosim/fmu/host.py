@@ -8,9 +8,11 @@ compiled into the per-user cache like the FMUs), or, when the shim cannot be
 built (no compiler), in three calls of the FMU's functions from Python; both
 make the same FMI calls with the same arguments, so the outputs are the same
 bits. The shim also gives each FMI 2 instance a logger of its own (fmpy's
-proxy has one for the whole process). Every FMI error becomes a `ComponentFailure` carrying the last
-messages the FMU logged (logging is always on; with `log_file` every message
-also goes to the run's run.log, warnings and errors to the terminal too).
+proxy has one for the whole process). `step_values` is the same step on plain
+floats, the master's values lane (`cosim.engine.hosting`). Every FMI error
+becomes a `ComponentFailure` carrying the last messages the FMU logged
+(logging is always on; with `log_file` every message also goes to the run's
+run.log, warnings and errors to the terminal too).
 
 FMI call sequence: after a Fatal status no FMI function is called any more
 (not even freeInstance, which FMI forbids then); after an Error only

@@ -132,9 +132,18 @@ def _load(path: Path) -> ctypes.CDLL:
 
 
 def library() -> ctypes.CDLL | None:
-    """The shim for this process's cache, or None when it cannot be built (the host then uses fmpy)."""
+    """The shim for this process's cache, or None when it cannot be built (the host then uses fmpy).
+
+    Looked up once per cache folder and compiler (hashing the sources and headers takes
+    milliseconds: not once per FMU instance).
+    """
+    return _library(cache.cache_root(), shutil.which("gcc"))
+
+
+@functools.lru_cache(maxsize=None)
+def _library(root: Path, gcc: str | None) -> ctypes.CDLL | None:
     try:
-        return load_stepper()
+        return load_stepper(root / "stepper")
     except (StepperBuildError, OSError, build.FmuBuildError):
         return None
 
