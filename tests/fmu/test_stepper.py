@@ -12,7 +12,6 @@ requests are tested on both paths in test_fmi_sequence.py.
 from __future__ import annotations
 
 import ctypes
-import math
 import struct
 from collections import namedtuple
 from types import SimpleNamespace
@@ -21,6 +20,7 @@ import pytest
 
 from cosim.component import Port
 from cosim.engine.master import Master
+from benchmarks.bench_fmu_step import realistic_inputs
 from cosim.errors import ComponentFailure
 from cosim.fmu import build, stepper
 from cosim.fmu.host import FmuComponent
@@ -40,19 +40,6 @@ def cache(tmp_path_factory):
         yield folder
 
 
-def realistic_inputs(ticks: int) -> list[dict[str, float]]:
-    """Smoothly varying plant inputs inside the models' ranges, one mapping per tick."""
-    rows = []
-    for k in range(ticks):
-        t = k * H
-        rows.append({"delta": 0.04 * math.sin(0.6 * t) + 0.01 * math.sin(3.1 * t),
-                     "torque": 150.0 + 400.0 * math.sin(0.25 * t),
-                     "wind_fx": -80.0 * math.cos(0.3 * t),
-                     "wind_fy": 250.0 * math.sin(0.9 * t) ** 3,
-                     "mu": 0.85 + 0.15 * math.cos(0.05 * t)})
-    return rows
-
-
 def make_host(path, use_shim: bool) -> FmuComponent:
     """An FmuComponent of one FMU on the step path asked for, started at t = 0."""
     host = FmuComponent("vehicle", path, describe_fmu(path), {}, 1, use_shim=use_shim)
@@ -64,6 +51,18 @@ def make_host(path, use_shim: bool) -> FmuComponent:
 
 def _bits(outputs: dict[str, float]) -> tuple[list[str], bytes]:
     return list(outputs), struct.pack(f"{len(outputs)}d", *outputs.values())
+
+
+def _assert_same_steps(first, second, ticks):
+    """Step two started hosts with the same realistic inputs; every output the same bits; stop both."""
+    inputs = realistic_inputs(ticks + 1)
+    try:
+        for k in range(1, ticks + 1):
+            a, b = first.step(k, k * H, inputs[k]), second.step(k, k * H, inputs[k])
+            assert _bits(a) == _bits(b), (k, a, b)
+    finally:
+        first.stop()
+        second.stop()
 
 
 def test_compiles_once_per_source_key_with_the_fmus_strict_flags(cache):
@@ -81,15 +80,7 @@ def test_compiles_once_per_source_key_with_the_fmus_strict_flags(cache):
 @pytest.mark.parametrize("version", [2, 3])
 def test_outputs_bit_identical_to_the_per_call_path(fmu_dir, model, version):
     path, _ = built_fmu(fmu_dir, model, version)
-    inputs = realistic_inputs(1501)
-    per_call, shim = make_host(path, False), make_host(path, True)
-    try:
-        for k in range(1, 1501):
-            a, b = per_call.step(k, k * H, inputs[k]), shim.step(k, k * H, inputs[k])
-            assert _bits(a) == _bits(b), (k, a, b)
-    finally:
-        per_call.stop()
-        shim.stop()
+    _assert_same_steps(make_host(path, False), make_host(path, True), 1500)
 
 
 def _failure(path, use_shim, tick, t, inputs):
@@ -165,14 +156,8 @@ def test_without_a_compiler_the_host_keeps_the_per_call_path(fmu_dir, tmp_path, 
     assert stepper.library() is None
     without = FmuComponent("vehicle", path, describe_fmu(path), {}, 1)  # use_shim left at True
     without.start(0.0, {p.name: inputs[0].get(p.name, 0.0) for p in without.inputs})
-    try:
-        assert without._stepper is None
-        for k in range(1, 201):
-            a, b = without.step(k, k * H, inputs[k]), with_shim.step(k, k * H, inputs[k])
-            assert _bits(a) == _bits(b), (k, a, b)
-    finally:
-        without.stop()
-        with_shim.stop()
+    assert without._stepper is None
+    _assert_same_steps(without, with_shim, 200)
 
 
 class Driver:
