@@ -26,10 +26,13 @@ functions with the most self time, and `--profile-out FILE` (.html or text) keep
 
 Run: .venv/bin/python benchmarks/bench_closed_loop.py [--seconds 20] [--repeats 5] [--clock cpu|wall]
      [--controller backstepping|feedforward|stanley|pure_pursuit] [--manoeuvre lane_keeping|lane_change]
-     [--profile] [--profile-out FILE] [--profiler pyinstrument|py-spy] [--fmu-host platform|shim]
+     [--profile] [--profile-out FILE] [--profiler pyinstrument|py-spy] [--fmu-host platform|fmpy]
 
-`--fmu-host shim` hosts the FMU with the C stepping shim (benchmarks/stepper_binding.py) instead
-of the platform's FmuComponent.
+`--fmu-host platform` (the default) hosts the FMU as `cosim run` does: `FmuComponent` through
+the C stepping shim (`cosim.fmu.stepper`, one C call per step); `--fmu-host fmpy` takes the
+host's per-call path instead (three ctypes calls per step, what a machine without a compiler
+gets). The first line printed is a machine-speed anchor (`benchmarks.common.speed_anchor`),
+so figures from different sessions can be compared.
 """
 
 from __future__ import annotations
@@ -44,7 +47,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.common import PROFILERS, profile_call  # noqa: E402
+from benchmarks.common import PROFILERS, load_average, profile_call, speed_anchor  # noqa: E402
 
 from cosim.errors import UserError  # noqa: E402
 from cosim.fmu.host import FmuComponent  # noqa: E402
@@ -100,21 +103,24 @@ def write_scenario(folder: Path, seconds: float, controller: str, manoeuvre: str
 
 
 class StepTimer:
-    """Wraps a host's `step` and adds up the time spent inside it."""
+    """Wraps a host's `step` (and its `step_values`, the master's values lane) and adds up the time inside."""
 
     def __init__(self, hosted) -> None:
-        self.inner = hosted.step
         self.seconds = 0.0
         self.calls = 0
-        hosted.step = self.step
+        self.step = hosted.step = self._timed(hosted.step)
+        if getattr(hosted, "step_values", None) is not None:
+            hosted.step_values = self._timed(hosted.step_values)
 
-    def step(self, tick, t, inputs):
-        """The wrapped step, timed."""
-        start = CLOCK()
-        outputs = self.inner(tick, t, inputs)
-        self.seconds += CLOCK() - start
-        self.calls += 1
-        return outputs
+    def _timed(self, inner):
+        """`inner` (a step or step_values), timed."""
+        def timed(tick, t, inputs):
+            start = CLOCK()
+            outputs = inner(tick, t, inputs)
+            self.seconds += CLOCK() - start
+            self.calls += 1
+            return outputs
+        return timed
 
 
 def timer_cost(calls: int = 20000) -> tuple[float, float]:
@@ -137,22 +143,20 @@ def timer_cost(calls: int = 20000) -> tuple[float, float]:
     return timer.seconds / calls, max(wrapped - bare, 0.0) / calls
 
 
-FMU_HOSTS = ("platform", "shim")
+FMU_HOSTS = ("platform", "fmpy")
 FMU_HOST = "platform"   # set from --fmu-host in main()
+PATHS_SEEN: set[str] = set()   # the FMU host's step paths the runs took ("shim", "per-call")
 
 
 def build_hosts(prepared) -> dict:
     """The run's hosts in declaration order: the FMU and the Python components, all in-process.
 
-    The FMU host is the platform's FmuComponent, or with FMU_HOST "shim" the
-    benchmarks' ShimFmuComponent (one C call per step, benchmarks/stepper_binding.py).
+    The FMU host is the platform's FmuComponent: through the stepping shim, or with
+    FMU_HOST "fmpy" on its per-call path (use_shim=False).
     """
-    if FMU_HOST == "shim":
-        from benchmarks.stepper_binding import shim_fmu_component as host
-    else:
-        host = FmuComponent
-    hosted = {plan.name: host(plan.name, plan.path, plan.interface, plan.parameters,
-                              plan.period_ticks) for plan in prepared.fmus}
+    hosted = {plan.name: FmuComponent(plan.name, plan.path, plan.interface, plan.parameters,
+                                      plan.period_ticks, use_shim=FMU_HOST != "fmpy")
+              for plan in prepared.fmus}
     hosted.update({launch.name: InprocComponent(launch) for launch in prepared.launches})
     return {name: hosted[name] for name in prepared.names}
 
@@ -173,6 +177,8 @@ def run_once(prepared, timed: bool) -> tuple[float, dict[str, tuple[float, int]]
     master = build_master(prepared, hosted)
     try:
         master.initialize()
+        PATHS_SEEN.update("shim" if c._stepper is not None else "per-call"
+                          for c in hosted.values() if isinstance(c, FmuComponent))
         start = CLOCK()
         for k in range(1, master.total_ticks + 1):
             master.step_tick(k)
@@ -192,9 +198,9 @@ def profile_run(prepared, out: str | None, profiler: str) -> None:
             master.step_tick(k)
 
     def step_in(*files: str):
-        return lambda function, path: function == "step" and Path(path).name in files
+        return lambda function, path: function in ("step", "step_values") and Path(path).name in files
 
-    groups = {"FMU step (FmuComponent.step)": step_in("fmu_component.py", "stepper_binding.py"),
+    groups = {"FMU step (FmuComponent.step)": step_in("host.py"),
               "controller (*Controller.step)": step_in("backstepping.py", "baselines.py"),
               "planner (Planner.step, amortized)": step_in("planner.py"),
               "tick loop (Master.step_tick)": lambda function, path: (
@@ -239,13 +245,15 @@ def main() -> None:
                         help="pyinstrument (in-process, inflates Python code ~2x) or py-spy (attaches "
                              "from outside, needs ptrace rights, no slow-down)")
     parser.add_argument("--fmu-host", choices=FMU_HOSTS, default="platform",
-                        help="platform: cosim's FmuComponent (3 ctypes calls per step); shim: the C "
-                             "stepping shim (1 call, benchmarks/stepper_binding.py)")
+                        help="platform: cosim's FmuComponent as runs use it (the C stepping shim, 1 call "
+                             "per step); fmpy: its per-call path (3 ctypes calls, as without a compiler)")
     args = parser.parse_args()
     if not (args.seconds >= 0.1 and args.repeats >= 1):
         parser.error(f"need --seconds >= 0.1 and --repeats >= 1, got {args.seconds} and {args.repeats}")
     global CLOCK, FMU_HOST
     CLOCK, FMU_HOST = CLOCKS[args.clock], args.fmu_host
+    print(f"machine-speed anchor: {speed_anchor():.1f} ns per pure-Python loop iteration "
+          f"(benchmarks.common.speed_anchor); load average {load_average()}")
     with tempfile.TemporaryDirectory() as tmp:
         prepared = prepare_run(load_scenario(write_scenario(Path(tmp), args.seconds, args.controller,
                                                             args.manoeuvre)))
@@ -259,7 +267,9 @@ def main() -> None:
     best = min(timed, key=lambda figures: figures["total"])
     labels = {"vehicle": "FMU step (vehicle)", "controller": "controller (every tick)",
               "planner": "planner (amortized, 1 in 10 ticks)"}
-    print(f"{args.controller} + planner ({args.manoeuvre}) + Vehicle8DOF ({args.fmu_host} FMU host), {ticks} ticks of "
+    path = " + ".join(sorted(PATHS_SEEN))
+    print(f"{args.controller} + planner ({args.manoeuvre}) + Vehicle8DOF ({args.fmu_host} FMU host, {path} path), "
+          f"{ticks} ticks of "
           f"{tick * 1e3:g} ms, {args.clock} clock, best of {args.repeats} timed runs (timer costs taken off)")
     print(f"{'part':<36}{'us/tick':>10}{'share':>8}")
     for name, value in best.items():

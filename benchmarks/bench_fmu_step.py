@@ -8,18 +8,18 @@ physics differs). Real and null run in alternating blocks; the minimum over
 the repeats is printed, in microseconds, with the ratio physics / overhead,
 and, as a cross-check, the cost of the model's do_step alone timed in C.
 
-Second table (`--part shim`, on by default): the platform's per-tick host
-step (`cosim.fmu.host.FmuComponent.step`: held inputs from a mapping,
-set + doStep + get as three ctypes calls, outputs as a dict) against the
-same step through the C stepping shim (fmus/stepper, binding in
-benchmarks/stepper_binding.py: one ctypes call), alternating blocks, with
-realistic varying inputs; first both are run side by side for
-`--check-steps` ticks and their outputs must be bit-identical (exit 1 if
-not). Prints us per step (min and median over the repeats) and the ratio;
+Second table (`--part shim`, on by default): the platform host's per-tick
+step (`cosim.fmu.host.FmuComponent.step`: held inputs from a mapping, outputs
+as a dict) on its two paths: fmpy's per-call path (set + doStep + get as three
+ctypes calls; what a machine without a compiler gets) against the C stepping
+shim (fmus/stepper, `cosim.fmu.stepper`: one ctypes call, the default),
+alternating blocks, with realistic varying inputs; first both are run side by
+side for `--check-steps` ticks and their outputs must be bit-identical (exit 1
+if not). Prints us per step (min and median over the repeats) and the ratio;
 the `raw` columns are the calls alone (no mapping in, no dict out).
 
 `--profile` profiles the per-tick host step of Vehicle8DOF (FMI 2.0), the
-platform's and the shim's (benchmarks.common.profile_call; `--profiler
+per-call path and the shim (benchmarks.common.profile_call; `--profiler
 pyinstrument|py-spy`, `--profile-out FILE` keeps the first one's profile).
 
 Usage: .venv/bin/python benchmarks/bench_fmu_step.py [--steps N] [--repeats R]
@@ -192,40 +192,36 @@ def realistic_inputs(count: int) -> list[dict[str, float]]:
 
 
 def make_host(path: Path, shim: bool):
-    """The platform's FmuComponent (shim False) or a ShimFmuComponent of one FMU, started at t = 0."""
-    from benchmarks.stepper_binding import shim_fmu_component
+    """The platform's FmuComponent of one FMU on the shim (or fmpy's per-call) path, started at t = 0."""
     from cosim.fmu.host import FmuComponent
     from cosim.fmu.interface import describe_fmu
 
     interface = describe_fmu(path)
-    host = (shim_fmu_component if shim else FmuComponent)("vehicle", path, interface, {}, 1)
+    host = FmuComponent("vehicle", path, interface, {}, 1, use_shim=shim)
     start = realistic_inputs(1)[0]
     host.start(0.0, {p.name: start.get(p.name, 0.0) for p in host.inputs})
+    if (host._stepper is not None) != shim:
+        sys.exit("the stepping shim could not be built (is gcc on PATH?)")
     return host
 
 
 def host_pair(path: Path):
-    """(platform FmuComponent, ShimFmuComponent) of one FMU, both started at t = 0.
-
-    Two FMI 2.0 instances in one process share fmpy's logger proxy (one static
-    callback: the last instance instantiated receives every instance's log
-    messages), so compare error messages on hosts made one after the other.
-    """
+    """(per-call FmuComponent, shim FmuComponent) of one FMU, both started at t = 0."""
     return make_host(path, False), make_host(path, True)
 
 
 def check_identical(path: Path, steps: int) -> str | None:
-    """Step the platform host and the shim host side by side; None if every output is bit-identical."""
+    """Step the per-call host and the shim host side by side; None if every output is bit-identical."""
     inputs = realistic_inputs(steps + 1)
-    platform, shim = host_pair(path)
+    per_call, shim = host_pair(path)
     try:
         for k in range(1, steps + 1):
-            a, b = platform.step(k, k * H, inputs[k]), shim.step(k, k * H, inputs[k])
+            a, b = per_call.step(k, k * H, inputs[k]), shim.step(k, k * H, inputs[k])
             if list(a) != list(b) or array.array("d", a.values()).tobytes() != array.array("d", b.values()).tobytes():
                 diff = {n: (a[n], b.get(n)) for n in a if a[n] != b.get(n)}
                 return f"{path.name}: outputs differ at tick {k}: {diff}"
     finally:
-        platform.stop()
+        per_call.stop()
         shim.stop()
     return None
 
@@ -233,7 +229,7 @@ def check_identical(path: Path, steps: int) -> str | None:
 def time_hosts(path: Path, steps: int, repeats: int) -> dict[str, list[float]]:
     """us per step of each way, alternating blocks of `steps` ticks: host steps and raw calls."""
     inputs = realistic_inputs(steps)
-    platform, shim = host_pair(path)
+    per_call, shim = host_pair(path)
     tick = [0]
 
     def host_block(host) -> float:
@@ -245,7 +241,7 @@ def time_hosts(path: Path, steps: int, repeats: int) -> dict[str, list[float]]:
             step(k, k * H, inputs[j])
         return (time.perf_counter() - start) / steps * 1e6
 
-    def raw_platform(host) -> float:           # FmuComponent's bound calls, as its step makes them
+    def raw_per_call(host) -> float:           # FmuComponent's bound calls, as its step makes them
         in_val, out_val, values = host._in_val, host._out_val, [list(row.values()) for row in inputs]
         raw_set, do_step, raw_get = host._raw_set, host._do_step, host._raw_get
         t_prev = host._t_prev
@@ -262,7 +258,7 @@ def time_hosts(path: Path, steps: int, repeats: int) -> dict[str, list[float]]:
 
     def raw_shim(host) -> float:
         in_val, out_val, values = host._in_val, host._out_val, [list(row.values()) for row in inputs]
-        call, address = host._shim_step, host._shim_address
+        call, address = host._shim_call, host._shim_address
         t_prev = host._t_prev
         start = time.perf_counter()
         for j in range(steps):
@@ -275,8 +271,8 @@ def time_hosts(path: Path, steps: int, repeats: int) -> dict[str, list[float]]:
         host._t_prev = t_prev
         return (time.perf_counter() - start) / steps * 1e6
 
-    cases = {"platform": lambda: host_block(platform), "shim": lambda: host_block(shim),
-             "raw platform": lambda: raw_platform(platform), "raw shim": lambda: raw_shim(shim)}
+    cases = {"per-call": lambda: host_block(per_call), "shim": lambda: host_block(shim),
+             "raw per-call": lambda: raw_per_call(per_call), "raw shim": lambda: raw_shim(shim)}
     samples: dict[str, list[float]] = {label: [] for label in cases}
     try:
         for _ in range(repeats):
@@ -285,16 +281,16 @@ def time_hosts(path: Path, steps: int, repeats: int) -> dict[str, list[float]]:
                 if label.endswith("shim"):
                     tick[0] += steps     # both hosts have now done the same ticks
     finally:
-        platform.stop()
+        per_call.stop()
         shim.stop()
     return samples
 
 
 def shim_table(fmus: list[Path], steps: int, repeats: int, check_steps: int) -> bool:
-    """Print the platform-vs-shim table; False if some outputs were not bit-identical."""
-    print(f"\nper-tick host step: platform (FmuComponent.step, 3 ctypes calls) vs C shim (1 call); "
+    """Print the per-call-vs-shim table; False if some outputs were not bit-identical."""
+    print(f"\nper-tick host step: FmuComponent.step, fmpy per-call path (3 ctypes calls) vs C shim (1 call); "
           f"us per step, min / median of {repeats} x {steps} ticks; bit-identity over {check_steps} ticks")
-    print(f"{'FMU':22s} {'platform':>15s} {'shim':>15s} {'ratio':>6s} {'raw platform':>15s} "
+    print(f"{'FMU':22s} {'per-call':>15s} {'shim':>15s} {'ratio':>6s} {'raw per-call':>15s} "
           f"{'raw shim':>15s} {'ratio':>6s}  outputs")
     ok = True
     for path in fmus:
@@ -304,19 +300,19 @@ def shim_table(fmus: list[Path], steps: int, repeats: int, check_steps: int) -> 
         mins = {k: min(v) for k, v in samples.items()}
         meds = {k: statistics.median(v) for k, v in samples.items()}
         cell = lambda k: f"{mins[k]:6.2f} / {meds[k]:6.2f}"   # noqa: E731
-        print(f"{path.name:22s} {cell('platform'):>15s} {cell('shim'):>15s} "
-              f"{meds['platform'] / meds['shim']:6.2f} {cell('raw platform'):>15s} {cell('raw shim'):>15s} "
-              f"{meds['raw platform'] / meds['raw shim']:6.2f}  {'bit-identical' if problem is None else 'DIFFER'}")
+        print(f"{path.name:22s} {cell('per-call'):>15s} {cell('shim'):>15s} "
+              f"{meds['per-call'] / meds['shim']:6.2f} {cell('raw per-call'):>15s} {cell('raw shim'):>15s} "
+              f"{meds['raw per-call'] / meds['raw shim']:6.2f}  {'bit-identical' if problem is None else 'DIFFER'}")
         if problem:
             print(f"CHECK FAILED: {problem}")
-    print("ratio = platform / shim (medians); raw = the FMI calls alone from preallocated arrays.")
+    print("ratio = per-call / shim (medians); raw = the FMI calls alone from preallocated arrays.")
     return ok
 
 
 def profile_hosts(path: Path, steps: int, profiler: str, out: str | None) -> None:
     """Profile `steps` host steps of each kind on one FMU."""
     inputs = realistic_inputs(steps)
-    for label, host in zip(("platform FmuComponent.step", "shim ShimFmuComponent.step"), host_pair(path)):
+    for label, host in zip(("per-call FmuComponent.step", "shim FmuComponent.step"), host_pair(path)):
         def loop(host=host) -> None:
             step = host.step
             for k in range(1, steps + 1):
@@ -326,7 +322,7 @@ def profile_hosts(path: Path, steps: int, profiler: str, out: str | None) -> Non
         try:
             profile_call(loop, units=steps, unit="step", profiler=profiler, out=out, top=12,
                          groups={"host step": lambda function, file: function == "step"
-                                 and Path(file).name in ("fmu_component.py", "stepper_binding.py")})
+                                 and Path(file).name == "host.py"})
         finally:
             host.stop()
         out = None
@@ -338,13 +334,13 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=30,
                         help="blocks per FMU, alternating real/null (minimum is shown)")
     parser.add_argument("--part", choices=("all", "null", "shim"), default="all",
-                        help="null: the physics-vs-overhead table; shim: the platform-vs-shim table")
+                        help="null: the physics-vs-overhead table; shim: the per-call-vs-shim table")
     parser.add_argument("--check-steps", type=int, default=5000,
-                        help="ticks over which platform and shim outputs must be bit-identical")
+                        help="ticks over which per-call and shim outputs must be bit-identical")
     parser.add_argument("--profile", action="store_true",
-                        help="profile the per-tick host step (platform and shim) of Vehicle8DOF FMI 2.0")
+                        help="profile the per-tick host step (per-call and shim) of Vehicle8DOF FMI 2.0")
     parser.add_argument("--profiler", choices=PROFILERS, default="pyinstrument")
-    parser.add_argument("--profile-out", metavar="FILE", help="with --profile: keep the platform's profile")
+    parser.add_argument("--profile-out", metavar="FILE", help="with --profile: keep the per-call path's profile")
     args = parser.parse_args()
     ok = True
     with tempfile.TemporaryDirectory(prefix="bench-fmu-") as tmp:

@@ -56,6 +56,26 @@ def load_average() -> str:
     return " / ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
+ANCHOR_LOOPS = 200_000
+
+
+def speed_anchor(repeats: int = 5) -> float:
+    """This machine's speed now: ns per iteration of a fixed pure-Python float loop (best of `repeats`).
+
+    Figures from different sessions (or machines) compare through it: a
+    benchmark figure divided by the anchor printed beside it is roughly
+    independent of how fast the core was at the time. Thread CPU time.
+    """
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.thread_time()
+        x, y = 0.5, 0.0
+        for _ in range(ANCHOR_LOOPS):
+            y = y * 0.999 + x * x - 0.25
+        best = min(best, time.thread_time() - start)
+    return best / ANCHOR_LOOPS * 1e9
+
+
 def table_row(measure: str, figure: str, target: str, met: bool | None) -> dict[str, object]:
     """One row of the performance table (`benchmarks/run_all.py`): what, the figure, the target, met?"""
     return {"measure": measure, "figure": figure, "target": target, "met": met}

@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from benchmarks import run_all_rows  # noqa: E402
-from benchmarks.common import RESULT_PREFIX  # noqa: E402
+from benchmarks.common import RESULT_PREFIX, speed_anchor  # noqa: E402
 
 BEGIN = "<!-- perf-table:begin -->"
 END = "<!-- perf-table:end -->"
@@ -177,6 +177,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     known = {b.name for b in BENCHMARKS}
     if args.only and not set(args.only) <= known:
         parser.error(f"unknown benchmark(s) {sorted(set(args.only) - known)}; choose from {sorted(known)}")
+    machine = (f"{machine_line()}, speed anchor {speed_anchor():.1f} ns per iteration of a fixed "
+               "pure-Python loop (`benchmarks.common.speed_anchor`, before the benchmarks)")
     outcomes = []
     for bench in BENCHMARKS:
         if args.only and bench.name not in args.only:
@@ -186,7 +188,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"  {outcomes[-1].seconds:.0f} s{', ' + outcomes[-1].problem if outcomes[-1].problem else ''}",
               file=sys.stderr, flush=True)
     when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    block = readme_block(outcomes, when, args.full, machine_line())
+    block = readme_block(outcomes, when, args.full, machine)
     print(block)
     if not args.no_readme and not args.only:
         args.readme.write_text(replace_block(args.readme.read_text(encoding="utf-8"), block), encoding="utf-8")

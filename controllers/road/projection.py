@@ -127,10 +127,11 @@ class PreparedWindow:
         # tracked_chord's state per slot: certificate (x0, y0, R, lo, hi, floor), last answer (-1: none)
         self.certs: list[tuple | None] = [None, None, None, None]
         self.best = [-1, -1, -1, -1]
-        # extra radius of a certificate: two mean chords (wider: more chords measured per call,
-        # narrower: more full searches)
+        # extra radius of a certificate: four mean chords (wider: more chords measured per call,
+        # narrower: more full searches; the answer does not depend on it, only the time: 2 was 5 %
+        # slower in the closed loop)
         self.mean_chord = self.reach[-1] / self.chords
-        self.margin = 2.0 * self.mean_chord
+        self.margin = 4.0 * self.mean_chord
 
     def chord_distance2(self, i: int, px: float, py: float) -> tuple[float, float]:
         """Squared distance from (px, py) to chord i and the clamped chord parameter of the foot."""
@@ -309,7 +310,9 @@ def _refine(seg: tuple[float, ...], t: float, px: float, py: float) -> float:
         slope = dx * dx + dy * dy + ex * ddx + ey * ddy
         if slope <= 0.0:
             break
-        new_t = min(1.0, max(0.0, t - (ex * dx + ey * dy) / slope))
+        new_t = t - (ex * dx + ey * dy) / slope
+        # min(1.0, max(0.0, new_t)) without the two calls (same result, NaN and -0.0 included)
+        new_t = (new_t if new_t < 1.0 else 1.0) if new_t > 0.0 else 0.0
         if abs(new_t - t) < 1e-13:
             return new_t
         t = new_t

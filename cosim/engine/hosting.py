@@ -22,6 +22,12 @@ class HostedComponent(Protocol):
         name: the component's name in the scenario ("vehicle", "controller", ...).
         inputs / outputs: the declared ports (known before `start`).
         period_ticks: how many master ticks between two steps (>= 1).
+
+    Optional, the values lane: a host may also offer `step_values(tick, t,
+    inputs) -> outputs`, the same step as `step` with both sides plain sequences
+    of floats, in the orders its `value_names` = (input names, output names)
+    gives. The master uses it for a component whose ports are all scalars and
+    are those names in that order (no mapping built or read per step).
     """
 
     name: str

@@ -75,6 +75,8 @@ class _Plan:
         self.has_array_inputs = bool(self.slots.in_arrays)
         self.has_array_outputs = bool(self.slots.out_arrays)
         self.transforms = self.slots.transforms  # empty unless an input edge has scale/offset
+        self.step_values = _values_lane(self.hosted, self.slots)
+        self.out_block = _array_block(self.slots.out_arrays)
 
 
 class Master:
@@ -184,7 +186,8 @@ class Master:
     def step_tick(self, k: int) -> None:
         """Run tick k: refresh delayed inputs, step the due components in order.
 
-        This is the hot loop: gather and the scalar part of scatter are inlined.
+        This is the hot loop: a host that offers the values lane is stepped on plain
+        floats (`_step_on_values`), the others on mappings (`_step_on_mapping`).
         """
         t = self.t0 + k * self.tick
         if self._has_delays:
@@ -197,29 +200,48 @@ class Master:
         for plan in plans:
             if plan.transforms:
                 _apply_transforms(plan.transforms, values)
-            inputs = dict(zip(plan.in_names, plan.pick_inputs(values)))
-            if plan.has_array_inputs:
-                self._gather_arrays(plan, inputs)
-            if self.trace is not None:
-                self.trace.append((k, plan.name, _copy_inputs(inputs)))
             crumb[0] = tick_bits | plan.crumb_step
-            try:
-                outputs = plan.step(k, t, inputs)
-            except StopRequested as request:  # the tick completes; `run` ends after it
-                self.stop_request, outputs = request, request.outputs
-            try:
-                new = list(map(float, plan.pick_outputs(outputs)))
-            except Exception:  # missing name, not a mapping, not a number: diagnose
-                raise _diagnose(plan, outputs, k, t) from None
-            if not all(map(_isfinite, new)):
-                raise _diagnose(plan, outputs, k, t)
-            values[plan.out_start:plan.out_stop] = new
-            if plan.has_array_outputs:
-                self._scatter_arrays(plan, outputs, k, t)
+            if plan.step_values is not None and self.trace is None:
+                self._step_on_values(plan, k, t, values)
+            else:
+                self._step_on_mapping(plan, k, t, values)
         crumb[0] = 0
         self.ticks_done = k
         for observer in self.observers:
             observer.after_tick(k, t, values, self.arrays)
+
+    def _step_on_values(self, plan: _Plan, k: int, t: float, values: list[float]) -> None:
+        """One step through the host's values lane: scalars in, scalars out, no mapping."""
+        try:
+            new = plan.step_values(k, t, plan.pick_inputs(values))
+        except StopRequested as request:  # the tick completes; `run` ends after it
+            self.stop_request = request
+            self._scatter(plan, request.outputs, k, t)
+            return
+        if not _isfinite(sum(new)) and not all(map(_isfinite, new)):  # one test, diagnosis on failure
+            raise _diagnose(plan, dict(zip(plan.slots.out_scalar_names, new)), k, t)
+        values[plan.out_start:plan.out_stop] = new
+
+    def _step_on_mapping(self, plan: _Plan, k: int, t: float, values: list[float]) -> None:
+        """One step through the host's `step`: inputs as a mapping, outputs checked and stored."""
+        inputs = dict(zip(plan.in_names, plan.pick_inputs(values)))
+        if plan.has_array_inputs:
+            self._gather_arrays(plan, inputs)
+        if self.trace is not None:
+            self.trace.append((k, plan.name, _copy_inputs(inputs)))
+        try:
+            outputs = plan.step(k, t, inputs)
+        except StopRequested as request:  # the tick completes; `run` ends after it
+            self.stop_request, outputs = request, request.outputs
+        try:
+            new = list(map(float, plan.pick_outputs(outputs)))
+        except Exception:  # missing name, not a mapping, not a number: diagnose
+            raise _diagnose(plan, outputs, k, t) from None
+        if not _isfinite(sum(new)) and not all(map(_isfinite, new)):
+            raise _diagnose(plan, outputs, k, t)
+        values[plan.out_start:plan.out_stop] = new
+        if plan.has_array_outputs:
+            self._scatter_arrays(plan, outputs, k, t)
 
     def _refresh_delays(self) -> None:
         values, arrays = self.values, self.arrays
@@ -262,15 +284,23 @@ class Master:
         self._scatter_arrays(plan, outputs, k, t)
 
     def _scatter_arrays(self, plan: _Plan, outputs: Any, k: int | None, t: float) -> None:
+        """Write a component's array outputs straight into the store, then test them once.
+
+        The read-only copies readers get are made when a reader gathers them
+        (`_gather_arrays`); a rejected output fails the run (the store is not read again).
+        """
+        arrays, frozen = self.arrays, self._frozen
         for name, off, size in plan.slots.out_arrays:
             try:
-                array = _freeze(outputs[name])
+                value = outputs[name]
+                if getattr(value, "shape", None) != (size,) and np.shape(value) != (size,):
+                    raise ValueError(name)
+                arrays[off:off + size] = value
             except Exception:
                 raise _diagnose(plan, outputs, k, t) from None
-            if array.shape != (size,) or not np.isfinite(array).all():
-                raise _diagnose(plan, outputs, k, t)
-            self.arrays[off:off + size] = array
-            self._frozen[off] = array
+            frozen.pop(off, None)
+        if not all(np.isfinite(arrays[start:stop]).all() for start, stop in plan.out_block):
+            raise _diagnose(plan, outputs, k, t)
 
     def stop_all(self) -> tuple[dict[str, dict[str, float]], list[str]]:
         """Stop every started component (reverse step order), even after a failure.
@@ -304,6 +334,25 @@ def _due_table(plans: Sequence[_Plan], limit: int = 4096) -> list[list[_Plan]] |
     if cycle > limit:
         return None
     return [[p for p in plans if r % p.period == 0] for r in range(cycle)]
+
+
+def _values_lane(hosted: Any, slots: ComponentSlots) -> Callable[..., Any] | None:
+    """The host's `step_values` when it offers one for exactly this component's scalar ports, else None."""
+    lane = getattr(hosted, "step_values", None)
+    names = getattr(hosted, "value_names", None)
+    if lane is None or slots.in_arrays or slots.out_arrays:
+        return None
+    if names != (tuple(slots.in_scalar_names), tuple(slots.out_scalar_names)):
+        return None
+    return lane
+
+
+def _array_block(out_arrays: Sequence[tuple[str, int, int]]) -> list[tuple[int, int]]:
+    """(start, stop) spans of `arrays` holding a component's array outputs: one when contiguous."""
+    spans = sorted((off, off + size) for _, off, size in out_arrays)
+    if spans and spans[-1][1] - spans[0][0] == sum(stop - start for start, stop in spans):
+        return [(spans[0][0], spans[-1][1])]
+    return spans
 
 
 def _apply_transforms(transforms: Sequence[tuple], values: list[float]) -> None:

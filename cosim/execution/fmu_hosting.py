@@ -59,8 +59,11 @@ def host_fmus(scenario: Any, plans: list[Any], out: Path, deadline_of: dict[str,
         deadline_of: component -> call deadline (see `deadlines`).
         fmu_log: `--fmu-log`: every FMU logs to run.log.
     """
+    from cosim.fmu import stepper
     from cosim.fmu.typed import hosted_fmu
 
+    if plans:
+        stepper.library()  # a first use compiles the stepping shim now, not inside a start's deadline
     hosted: dict[str, Any] = {}
     loaded: set[str] = set()  # model identifiers hosted in this process
     for plan in plans:

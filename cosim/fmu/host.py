@@ -5,10 +5,16 @@ see `cosim.fmu.interface`); each step sets the held inputs, calls doStep from
 the previous communication point and reads the outputs through preallocated
 ctypes arrays: Float64/Real scalars only (an FMU with ports of other types or
 FMI 3 arrays is hosted by the subclass in `cosim.fmu.typed`, chosen at setup so
-that this step path stays as it is). Every FMI error becomes a `ComponentFailure`
-carrying the last messages the FMU logged (logging is always on; with `log_file`
-every message also goes to the run's run.log, warnings and errors to the terminal
-too).
+that this step path stays as it is). The step is one C call through the
+stepping shim (`cosim.fmu.stepper`, compiled into the per-user cache like the
+FMUs), or, when the shim cannot be built (no compiler), three calls of the
+FMU's functions from Python; both make the same FMI calls with the same
+arguments, so the outputs are the same bits. The shim also gives each FMI 2
+instance a logger of its own (fmpy's proxy has one for the whole process).
+`step_values` is the same step on plain floats, the master's values lane
+(`cosim.engine.hosting`). Every FMI error becomes a `ComponentFailure` carrying
+the last messages the FMU logged (logging is always on; with `log_file` every
+message also goes to the run's run.log, warnings and errors to the terminal too).
 
 FMI call sequence: after a Fatal status no FMI function is called any more
 (not even freeInstance, which FMI forbids then); after an Error only
@@ -23,7 +29,7 @@ import ctypes
 import shutil
 import sys
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +41,9 @@ from fmpy.fmi3 import FMU3Model, FMU3Slave
 from fmpy.logging import addLoggerProxy
 
 from cosim.component import Port, Value
+from cosim.engine.values import picker
 from cosim.errors import ComponentFailure, FmuInterfaceError, StopRequested
+from cosim.fmu import stepper
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 FATAL = 4
@@ -112,14 +120,17 @@ class FmuComponent:
         period_ticks: master ticks between two steps.
         log_file: run.log of the run, to append the FMU's messages to (and
             show its warnings and errors); None: kept only for error reports.
+        use_shim: step through the stepping shim when it can be built; False:
+            fmpy's per-call path and logger proxy, as without a compiler (benchmarks).
     """
 
     direct_feedthrough = False  # co-simulation FMUs integrate over [t_prev, t)
 
     def __init__(self, name: str, path: str | Path, interface: Any,
                  parameters: Mapping[str, float], period_ticks: int,
-                 log_file: str | Path | None = None) -> None:
+                 log_file: str | Path | None = None, use_shim: bool = True) -> None:
         self.name = name
+        self.use_shim = use_shim
         self.path = Path(path)
         self.interface = interface
         self.period_ticks = int(period_ticks)
@@ -142,6 +153,10 @@ class FmuComponent:
         sink = open(log_file, "a", encoding="utf-8") if log_file is not None else None
         self.log = FmuLog(name, sink)
         self._fmu: Any = None
+        self._shim: Any = None  # the stepping shim library, None: fmpy's per-call path
+        self._stepper: stepper.Stepper | None = None  # None: the per-call path
+        self._pick_inputs = picker(self._in_names)
+        self.value_names = (tuple(self._in_names), tuple(self._out_names))  # the values lane
         self._unzipped: str | None = None
         self._t_prev = 0.0
         self._initialized = False
@@ -171,28 +186,61 @@ class FmuComponent:
             raise self._failure(None, t0, exc) from exc
 
     def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
-        """Set the held inputs, doStep(t_prev, t - t_prev), read the outputs.
+        """Set the held inputs, doStep(t_prev, t - t_prev), read the outputs (see step_values)."""
+        try:
+            held = self._pick_inputs(inputs)
+        except Exception as exc:
+            raise self._failure(tick, t, exc) from exc
+        return dict(zip(self._out_names, self.step_values(tick, t, held)))
+
+    def step_values(self, tick: int, t: float, inputs: Sequence[float]) -> list[float]:
+        """`step` on plain values: inputs in `value_names[0]` order, outputs in `value_names[1]` order.
 
         The hot path calls the FMU's C functions directly (fmpy's wrappers cost
-        several microseconds per call) and checks their status itself.
+        several microseconds per call): through the shim in one call, else one
+        by one; the statuses are checked here.
         """
         self.log.time = t
         try:
-            self._set_inputs(inputs)
-            status = self._do_step(self._t_prev, t - self._t_prev)
-            if status > 1 or (self.fmi3 and self._terminate.value):
-                self._step_problem(tick, t, status)
+            if self._stepper is None:
+                return list(self._step_per_call(tick, t, dict(zip(self._in_names, inputs))).values())
+            if self._in_names:
+                self._in_val[:] = inputs
+            code = self._shim_call(self._shim_address, self._t_prev, t - self._t_prev)
+            if code:
+                self._shim_problem(tick, t, code)
             self._t_prev = t
-            return self._get_outputs()
+            return self._out_val[:]
         except (ComponentFailure, StopRequested):
             raise
         except Exception as exc:
             raise self._failure(tick, t, exc) from exc
 
+    def _step_per_call(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """The step without the shim: set, doStep and get as three calls from Python."""
+        self._set_inputs(inputs)
+        status = self._do_step(self._t_prev, t - self._t_prev)
+        if status > 1 or (self.fmi3 and self._terminate.value):
+            self._step_problem(tick, t, status)
+        self._t_prev = t
+        return self._get_outputs()
+
+    def _shim_problem(self, tick: int, t: float, code: int) -> None:
+        """A shim step that stopped early: which call, with which status (as after our own call)."""
+        if code in (stepper.STEP_DO_STEP, stepper.STEP_TERMINATE):
+            self._step_problem(tick, t, self._stepper.struct.status[1])
+        raise FMICallException(*self._stepper.failure(code))
+
+    def _terminate_requested(self) -> bool:
+        """FMI 3: whether the last doStep set terminateSimulation."""
+        if self._stepper is not None:
+            return bool(self._stepper.struct.terminate_simulation)
+        return bool(self._terminate.value)
+
     def _step_problem(self, tick: int, t: float, status: int) -> None:
         """A step that did not end OK: a termination request (StopRequested) or an error."""
         if self.fmi3:
-            asked = bool(self._terminate.value) and status <= 2
+            asked = self._terminate_requested() and status <= 2
         else:
             asked = status == 2 and bool(self._fmu.getBooleanStatus(fmi2Terminated))
         if not asked:
@@ -218,7 +266,7 @@ class FmuComponent:
         finally:
             if self._fatal and self._fmu is not None:
                 _keep_alive.append((self._fmu, getattr(self, "_callbacks", None)))
-            self._fmu = None
+            self._fmu = self._stepper = None
             self._initialized = False
             self.log.close()
             if self._unzipped:
@@ -227,8 +275,10 @@ class FmuComponent:
         return {}
 
     def _instantiate(self) -> None:
+        self._shim = stepper.library() if self.use_shim else None
         self._unzipped, self._fmu, self._callbacks = instantiate(
-            self.path, self.interface, self.name, self.log, model_exchange=False, logging_on=True)
+            self.path, self.interface, self.name, self.log, model_exchange=False, logging_on=True,
+            shim=self._shim)
 
     def _set_real(self, vrs: list[int], values: list[float]) -> None:
         if self.fmi3:
@@ -260,6 +310,19 @@ class FmuComponent:
             self._raw_get = lambda: get_f(comp, out_vr, n_out, out_val)
             self._do_step = lambda t, h: do_f(comp, t, h, 1)
             self._do_step_name = "fmi2DoStep"
+        self._bind_shim()
+
+    def _bind_shim(self) -> None:
+        """Step through the shim when it can be built (else `_step_per_call`).
+
+        The shim sets and gets the Real (FMI 3: Float64) variables only, the
+        hot path; variables of other types go through fmpy's calls around it.
+        """
+        if self._shim is None:
+            return
+        self._stepper = stepper.Stepper(self._shim, self._fmu, self._in_vr, self._in_val,
+                                        self._out_vr, self._out_val)
+        self._shim_call, self._shim_address = self._stepper.call, self._stepper.address
 
     def _set_inputs(self, inputs: Mapping[str, Value]) -> None:
         if not self._in_names:
@@ -289,12 +352,19 @@ class FmuComponent:
 _keep_alive: list[Any] = []  # FMU instances (and their callbacks) after a Fatal status
 
 
-def _fmi2_callbacks(log: FmuLog) -> fmi2CallbackFunctions:
-    """FMI 2 callbacks whose logger feeds `log` (fmpy's C proxy formats varargs).
+def _fmi2_callbacks(log: FmuLog, shim: Any) -> fmi2CallbackFunctions:
+    """FMI 2 callbacks whose logger feeds `log`.
+
+    The shim's logger when there is a shim (one per instance), else fmpy's C
+    proxy (one for the whole process: with two FMI 2 instances, the messages
+    of both go to the last one set up).
 
     Args:
         log: where the FMU's messages go.
+        shim: the stepping shim library (`cosim.fmu.stepper.library()`), or None.
     """
+    if shim is not None:
+        return stepper.fmi2_callbacks(shim, log.add)
     callbacks = fmi2CallbackFunctions()
     callbacks.logger = fmi2CallbackLoggerTYPE(log.fmi2)
     callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
@@ -304,7 +374,7 @@ def _fmi2_callbacks(log: FmuLog) -> fmi2CallbackFunctions:
 
 
 def instantiate(path: Path, interface: Any, name: str, log: Any, model_exchange: bool,
-                logging_on: bool) -> tuple[str, Any, Any]:
+                logging_on: bool, shim: Any = None) -> tuple[str, Any, Any]:
     """Extract an FMU and instantiate it through fmpy, its messages going to `log`.
 
     Args:
@@ -314,6 +384,7 @@ def instantiate(path: Path, interface: Any, name: str, log: Any, model_exchange:
         log: the FmuLog that receives the FMU's messages.
         model_exchange: instantiate the Model Exchange interface (else co-simulation).
         logging_on: ask the FMU to log its debug categories too.
+        shim: the stepping shim library, whose FMI 2 logger is per instance; None: fmpy's proxy.
     Returns:
         (extraction folder, the fmpy FMU object, the FMI 2 callbacks to keep alive or None).
     """
@@ -327,6 +398,6 @@ def instantiate(path: Path, interface: Any, name: str, log: Any, model_exchange:
         fmu.instantiate(loggingOn=logging_on, logMessage=log.fmi3)
         return unzipped, fmu, None
     fmu = (FMU2Model if model_exchange else FMU2Slave)(**kwargs)
-    callbacks = _fmi2_callbacks(log)
+    callbacks = _fmi2_callbacks(log, shim)
     fmu.instantiate(callbacks=callbacks, loggingOn=logging_on)
     return unzipped, fmu, callbacks

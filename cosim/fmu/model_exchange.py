@@ -29,6 +29,7 @@ import numpy as np
 
 from cosim.component import Port, Value
 from cosim.errors import ComponentFailure, FmuInterfaceError
+from cosim.fmu import stepper
 from cosim.fmu.host import FmuLog, instantiate
 from cosim.fmu.solvers import make_solver
 from cosim.fmu.typed import TypedIO, needs_typed_io
@@ -180,7 +181,8 @@ class ModelExchangeComponent:
 
     def _instantiate(self) -> None:
         self._unzipped, self._fmu, self._callbacks = instantiate(
-            self.path, self.interface, self.name, self.log, model_exchange=True, logging_on=False)
+            self.path, self.interface, self.name, self.log, model_exchange=True, logging_on=False,
+            shim=stepper.library())  # for its per-instance FMI 2 logger
         if needs_typed_io(self.interface):
             self._io = TypedIO(self.name, self._fmu, self.fmi3, self.inputs, self.outputs,
                                self.interface.value_references)

@@ -26,7 +26,7 @@ import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from cosim.component import Port, Value
-from cosim.errors import ComponentFailure
+from cosim.errors import ComponentFailure, StopRequested
 from cosim.fmu.host import FmuComponent
 from cosim.signal_types import FLOAT_TYPES, inexact_integer, integer_problem, is_integer
 
@@ -49,10 +49,10 @@ def needs_typed_io(interface: Any) -> bool:
 
 
 def hosted_fmu(name: str, path: Any, interface: Any, parameters: Mapping[str, float],
-               period_ticks: int, log_file: Any = None) -> FmuComponent:
+               period_ticks: int, log_file: Any = None, use_shim: bool = True) -> FmuComponent:
     """The co-simulation host for an FMU: `TypedFmuComponent` when it needs typed I/O."""
     kind = TypedFmuComponent if needs_typed_io(interface) else FmuComponent
-    return kind(name, path, interface, parameters, period_ticks, log_file)
+    return kind(name, path, interface, parameters, period_ticks, log_file, use_shim)
 
 
 class _Group(NamedTuple):
@@ -148,17 +148,31 @@ class TypedIO:
 
 
 class TypedFmuComponent(FmuComponent):
-    """`FmuComponent` whose inputs and outputs go through `TypedIO` (any type, arrays)."""
+    """`FmuComponent` whose inputs and outputs go through `TypedIO` (any type, arrays).
+
+    It steps in three calls from Python: the stepping shim and the master's
+    values lane move Float64 scalars only.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.value_names = None  # no values lane: the ports are not all Float64 scalars
 
     def _bind(self) -> None:
         super()._bind()
+        self._stepper = None  # the per-call path, whose set and get are TypedIO's
         self._io = TypedIO(self.name, self._fmu, self.fmi3, self.inputs, self.outputs,
                            self.interface.value_references)
 
     def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """As `FmuComponent.step`; a value failure names this tick."""
-        self._io.tick = tick
-        return super().step(tick, t, inputs)
+        self._io.tick, self.log.time = tick, t
+        try:
+            return self._step_per_call(tick, t, inputs)
+        except (ComponentFailure, StopRequested):
+            raise
+        except Exception as exc:
+            raise self._failure(tick, t, exc) from exc
 
     def _set_inputs(self, inputs: Mapping[str, Value]) -> None:
         self._io.set(inputs, self.log.time)

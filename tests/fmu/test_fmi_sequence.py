@@ -1,7 +1,9 @@
 """FMI correctness of the FMU hosts, with tests/fmus/Faulty: no call the standard
 forbids after Fatal or Error, a termination request recorded as fmpy records it,
 the FMU's log in run.log and in error messages, DefaultExperiment's start time,
-canBeInstantiatedOnlyOncePerProcess."""
+canBeInstantiatedOnlyOncePerProcess. The co-simulation host's tests run on both
+of its step paths: the stepping shim (the default) and fmpy's per-call path
+(what a machine without a compiler gets)."""
 
 from __future__ import annotations
 
@@ -21,14 +23,24 @@ from cosim.fmu.typed import TypedFmuComponent, hosted_fmu
 FATAL, ERROR, TERMINATE, WARNINGS = 5, 6, 7, 9
 
 
-def _faulty(path, mode, log_file=None, fault_time=0.03):
+@pytest.fixture(params=[True, False], ids=["shim", "per-call"])
+def use_shim(request):
+    """Which step path the host takes (FmuComponent's use_shim)."""
+    return request.param
+
+
+def _faulty(path, mode, log_file=None, fault_time=0.03, use_shim=True):
     return hosted_fmu("plant", path, describe_fmu(path, {}),
-                      {"fault_mode": mode, "fault_time": fault_time}, 1, log_file)
+                      {"fault_mode": mode, "fault_time": fault_time}, 1, log_file, use_shim)
 
 
-def _run(fmu, ticks, h=0.01):
-    """Start and step `fmu`; the outputs after every tick, then the exception that ended it."""
+def _run(fmu, ticks, use_shim=None, h=0.01):
+    """Start and step `fmu`; the outputs after every tick, then the exception that ended it.
+
+    With `use_shim` True / False, first check that the host took that step path.
+    """
     rows = [fmu.start(0.0, {n.name: 0.0 for n in fmu.inputs})]
+    assert use_shim is None or (fmu._stepper is not None) == use_shim
     try:
         for k in range(1, ticks + 1):
             rows.append(fmu.step(k, k * h, {n.name: 0.0 for n in fmu.inputs}))
@@ -55,22 +67,23 @@ def calls(monkeypatch):
 @pytest.mark.parametrize("version", [2, 3])
 @pytest.mark.parametrize("mode, allowed", [(FATAL, []), (ERROR, ["freeInstance"]),
                                            (TERMINATE, ["terminate", "freeInstance"])])
-def test_after_fatal_no_call_after_error_only_free(faulty_fmus, calls, version, mode, allowed):
-    fmu = _faulty(faulty_fmus["Faulty", version], mode)
-    _, ended = _run(fmu, 10)
+def test_after_fatal_no_call_after_error_only_free(faulty_fmus, calls, version, mode, allowed,
+                                                  use_shim):
+    fmu = _faulty(faulty_fmus["Faulty", version], mode, use_shim=use_shim)
+    _, ended = _run(fmu, 10, use_shim)
     assert isinstance(ended, StopRequested if mode == TERMINATE else ComponentFailure)
     fmu.stop()
     assert calls == allowed
 
 
 @pytest.mark.parametrize("version", [2, 3])
-def test_the_step_that_asks_to_terminate_is_recorded_as_fmpy_does(faulty_fmus, version):
+def test_the_step_that_asks_to_terminate_is_recorded_as_fmpy_does(faulty_fmus, version, use_shim):
     path = faulty_fmus["Faulty", version]
     reference = fmpy.simulate_fmu(str(path), stop_time=0.1, step_size=0.01, output_interval=0.01,
                                   start_values={"fault_mode": TERMINATE, "fault_time": 0.03},
                                   output=["y", "u_echo"])
-    fmu = _faulty(path, TERMINATE)
-    rows, ended = _run(fmu, 10)
+    fmu = _faulty(path, TERMINATE, use_shim=use_shim)
+    rows, ended = _run(fmu, 10, use_shim)
     assert isinstance(ended, StopRequested) and (ended.tick, ended.time) == (3, 0.03)
     rows.append(ended.outputs)
     fmu.stop()
@@ -79,10 +92,10 @@ def test_the_step_that_asks_to_terminate_is_recorded_as_fmpy_does(faulty_fmus, v
 
 
 def test_an_error_quotes_the_fmus_last_logged_message_and_log_goes_to_run_log(
-        faulty_fmus, tmp_path, capsys):
+        faulty_fmus, tmp_path, capsys, use_shim):
     log = tmp_path / "run.log"
-    fmu = _faulty(faulty_fmus["Faulty", 2], ERROR, log)
-    _, ended = _run(fmu, 10)
+    fmu = _faulty(faulty_fmus["Faulty", 2], ERROR, log, use_shim=use_shim)
+    _, ended = _run(fmu, 10, use_shim)
     fmu.stop()
     assert "Faulty: injected error in the step from t = 0.02 to 0.03 (fault_mode 6)" in str(ended)
     assert "initialized at t = 0" not in str(ended)  # the errors, not every message
@@ -93,9 +106,11 @@ def test_an_error_quotes_the_fmus_last_logged_message_and_log_goes_to_run_log(
     assert "FMU t=0.03 plant: [Error/logStatusError] Faulty: injected error" in capsys.readouterr().err
 
 
-def test_warnings_reach_the_terminal_a_limited_number_of_times(faulty_fmus, tmp_path, capsys):
-    fmu = _faulty(faulty_fmus["Faulty", 3], WARNINGS, tmp_path / "run.log", fault_time=0.01)
-    rows, ended = _run(fmu, 40)
+def test_warnings_reach_the_terminal_a_limited_number_of_times(faulty_fmus, tmp_path, capsys,
+                                                              use_shim):
+    fmu = _faulty(faulty_fmus["Faulty", 3], WARNINGS, tmp_path / "run.log", fault_time=0.01,
+                  use_shim=use_shim)
+    rows, ended = _run(fmu, 40, use_shim)
     fmu.stop()
     assert ended is None and len(rows) == 41
     shown = [l for l in capsys.readouterr().err.splitlines() if "injected warning" in l]
