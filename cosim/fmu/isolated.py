@@ -3,8 +3,8 @@
 `IsolatedFmu` is the master's HostedComponent: it starts
 `python -m cosim.fmu.isolated` at once (its imports overlap the master's
 start-up) and exchanges fixed binary frames with it; the process hosts the
-FMU through the same `FmuComponent` as the master does in-process, so the
-results are bit-identical. A crash of the FMU (segfault, abort, exit) kills
+FMU through the same host as the master does in-process (`FmuComponent`, or
+`ModelExchangeComponent` with its solver), so the results are bit-identical. A crash of the FMU (segfault, abort, exit) kills
 only that process: the master reads the end of the pipe, takes its exit
 status and fails the run with the usual one-line message; a call that does
 not return within the deadline gets the process killed and the same kind of
@@ -59,13 +59,17 @@ class IsolatedFmu:
         period_ticks: master ticks between two steps.
         deadline_s: seconds an FMI call (one exchange) may take.
         log_file: run.log, or None (see `FmuComponent`).
+        solver: a Model Exchange FMU's resolved `solver:` settings (see
+            `ModelExchangeComponent`); None: co-simulation.
+        kind: the scenario's `interface:` (which interface of the FMU to describe).
     """
 
     direct_feedthrough = False
 
     def __init__(self, name: str, path: str | Path, interface: Any, variables: Mapping[str, str],
                  parameters: Mapping[str, float], period_ticks: int, deadline_s: float,
-                 log_file: str | Path | None = None) -> None:
+                 log_file: str | Path | None = None, solver: Mapping[str, Any] | None = None,
+                 kind: str | None = None) -> None:
         self.name, self.interface, self.period_ticks = name, interface, int(period_ticks)
         self.inputs: tuple[Port, ...] = tuple(interface.inputs)
         self.outputs: tuple[Port, ...] = tuple(interface.outputs)
@@ -79,7 +83,8 @@ class IsolatedFmu:
         config = {"name": name, "path": str(path), "variables": dict(variables),
                   "parameters": {k: float(v) for k, v in parameters.items()},
                   "period_ticks": self.period_ticks,
-                  "log_file": str(log_file) if log_file is not None else None}
+                  "log_file": str(log_file) if log_file is not None else None,
+                  "solver": dict(solver) if solver is not None else None, "kind": kind}
         self._spawn(config)
 
     def _spawn(self, config: dict[str, Any]) -> None:
@@ -234,14 +239,24 @@ def serve(rx: int, tx: int) -> int:
     if frame is None or frame[0] != b"C":
         return 2
     config = json.loads(frame[1])
-    from cosim.fmu.host import FmuComponent
+    _send(tx, b"R", b"")
+    return _loop(_host(config), rx, tx)
+
+
+def _host(config: dict[str, Any]) -> Any:
+    """The in-process host of the FMU the config names (as the master would host it)."""
     from cosim.fmu.interface import describe_fmu
 
-    interface = describe_fmu(Path(config["path"]), config["variables"])
-    fmu = FmuComponent(config["name"], config["path"], interface, config["parameters"],
-                       config["period_ticks"], config["log_file"])
-    _send(tx, b"R", b"")
-    return _loop(fmu, rx, tx)
+    interface = describe_fmu(Path(config["path"]), config["variables"], kind=config["kind"])
+    args = (config["name"], config["path"], interface, config["parameters"],
+            config["period_ticks"])
+    if config["solver"] is not None:
+        from cosim.fmu.model_exchange import ModelExchangeComponent
+
+        return ModelExchangeComponent(*args, config["solver"], config["log_file"])
+    from cosim.fmu.host import FmuComponent
+
+    return FmuComponent(*args, config["log_file"])
 
 
 def _loop(fmu: Any, rx: int, tx: int) -> int:

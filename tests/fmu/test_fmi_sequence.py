@@ -1,5 +1,6 @@
-"""FMI correctness of the FMU hosts, with tests/fmus/Faulty: no call the standard
-forbids after Fatal or Error, a termination request recorded as fmpy records it,
+"""FMI correctness of the FMU hosts, with tests/fmus/Faulty (co-simulation) and FaultyME
+(Model Exchange, the fault at a time event): no call the standard forbids after
+Fatal or Error, a termination request recorded as fmpy records it,
 the FMU's log in run.log and in error messages, DefaultExperiment's start time,
 canBeInstantiatedOnlyOncePerProcess."""
 
@@ -9,21 +10,27 @@ from types import SimpleNamespace
 
 import fmpy
 import pytest
-from fmpy.fmi2 import FMU2Slave
-from fmpy.fmi3 import FMU3Slave
+from fmpy.fmi2 import FMU2Model, FMU2Slave
+from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 from cosim.errors import ComponentFailure, StopRequested, UserError
 from cosim.execution import fmu_hosting
 from cosim.fmu.host import FmuComponent
 from cosim.fmu.interface import describe_fmu
 from cosim.fmu.isolated import IsolatedFmu
+from cosim.fmu.model_exchange import ModelExchangeComponent
 
 FATAL, ERROR, TERMINATE, WARNINGS = 5, 6, 7, 9
+CVODE = {"method": "cvode", "rtol": 1e-5, "atol": None, "max_step": 0.02}
 
 
 def _faulty(path, mode, log_file=None, fault_time=0.03):
-    return FmuComponent("plant", path, describe_fmu(path, {}),
-                        {"fault_mode": mode, "fault_time": fault_time}, 1, log_file)
+    """The host of a Faulty FMU: co-simulation, or Model Exchange (CVode) for FaultyME."""
+    parameters = {"fault_mode": mode, "fault_time": fault_time}
+    if path.stem.startswith("FaultyME"):
+        return ModelExchangeComponent("plant", path, describe_fmu(path, {}), parameters, 1,
+                                      CVODE, log_file)
+    return FmuComponent("plant", path, describe_fmu(path, {}), parameters, 1, log_file)
 
 
 def _run(fmu, ticks, h=0.01):
@@ -41,7 +48,7 @@ def _run(fmu, ticks, h=0.01):
 def calls(monkeypatch):
     """Names of the fmpy lifecycle calls made (terminate, freeInstance), in order."""
     made = []
-    for cls in (FMU2Slave, FMU3Slave):
+    for cls in (FMU2Slave, FMU3Slave, FMU2Model, FMU3Model):
         for name in ("terminate", "freeInstance"):
             original = getattr(cls, name)
 
@@ -52,13 +59,20 @@ def calls(monkeypatch):
     return made
 
 
+@pytest.mark.parametrize("model", ["Faulty", "FaultyME"])
 @pytest.mark.parametrize("version", [2, 3])
 @pytest.mark.parametrize("mode, allowed", [(FATAL, []), (ERROR, ["freeInstance"]),
                                            (TERMINATE, ["terminate", "freeInstance"])])
-def test_after_fatal_no_call_after_error_only_free(faulty_fmus, calls, version, mode, allowed):
-    fmu = _faulty(faulty_fmus["Faulty", version], mode)
+def test_after_fatal_no_call_after_error_only_free(faulty_fmus, calls, model, version, mode,
+                                                   allowed):
+    fmu = _faulty(faulty_fmus[model, version], mode)
     _, ended = _run(fmu, 10)
     assert isinstance(ended, StopRequested if mode == TERMINATE else ComponentFailure)
+    assert (ended.tick, ended.time) == (3, 0.03)
+    if mode != TERMINATE:
+        status = "Fatal" if mode == FATAL else "Error"
+        assert ended.details == {"kind": "fmi_status", "status": status}
+        assert f"injected {'fatal ' if mode == FATAL else ''}error" in ended.cause
     fmu.stop()
     assert calls == allowed
 
@@ -67,6 +81,24 @@ def test_after_fatal_no_call_after_error_only_free(faulty_fmus, calls, version, 
 def test_the_step_that_asks_to_terminate_is_recorded_as_fmpy_does(faulty_fmus, version):
     path = faulty_fmus["Faulty", version]
     reference = fmpy.simulate_fmu(str(path), stop_time=0.1, step_size=0.01, output_interval=0.01,
+                                  start_values={"fault_mode": TERMINATE, "fault_time": 0.03},
+                                  output=["y", "u_echo"])
+    fmu = _faulty(path, TERMINATE)
+    rows, ended = _run(fmu, 10)
+    assert isinstance(ended, StopRequested) and (ended.tick, ended.time) == (3, 0.03)
+    rows.append(ended.outputs)
+    fmu.stop()
+    assert [(r["y"], r["u_echo"]) for r in rows] == [(r["y"], r["u_echo"]) for r in reference]
+    assert [k * 0.01 for k in range(len(rows))] == list(reference["time"])
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_model_exchange_termination_request_is_recorded_as_fmpy_does(faulty_fmus, version):
+    """FaultyME asks at its time event t = 0.03 (newDiscreteStates / updateDiscreteStates):
+    the rows are fmpy's up to that point, the last one its event row (record_events)."""
+    path = faulty_fmus["FaultyME", version]
+    reference = fmpy.simulate_fmu(str(path), fmi_type="ModelExchange", stop_time=0.1,
+                                  output_interval=0.01, record_events=True,
                                   start_values={"fault_mode": TERMINATE, "fault_time": 0.03},
                                   output=["y", "u_echo"])
     fmu = _faulty(path, TERMINATE)

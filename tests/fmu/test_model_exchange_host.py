@@ -169,11 +169,15 @@ def test_a_step_event_from_completed_integrator_step_runs_the_event_iteration(
 
 
 def test_a_termination_request_from_completed_integrator_step_ends_the_run(test_fmu) -> None:
-    from cosim.errors import ComponentFailure
+    """The step that asked is the tick's row: the outputs at its end (y of the lag at 0.01,
+    one RK4 step: local error O((h / tau)^5), 1.3e-9 relative here)."""
+    from cosim.errors import StopRequested
 
     comp = lag_component(test_fmu("LagME", 3), method="rk4")
-    comp.start(0.0, {"u": 0.0})
+    comp.start(0.0, {"u": 1.0})
     comp._fmu.completedIntegratorStep = lambda: (False, True)
-    with pytest.raises(ComponentFailure, match="the FMU asked to terminate the simulation"):
-        comp.step(1, 0.01, {"u": 0.0})
+    with pytest.raises(StopRequested, match="the FMU asked to terminate the simulation") as asked:
+        comp.step(1, 0.01, {"u": 1.0})
     comp.stop()
+    assert (asked.value.tick, asked.value.time) == (1, 0.01)
+    assert asked.value.outputs["y"] == pytest.approx(2.0 * (1.0 - np.exp(-0.01 / 0.5)), rel=1e-8)
