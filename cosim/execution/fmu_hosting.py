@@ -78,6 +78,21 @@ def host_fmus(scenario: Any, plans: list[Any], out: Path, deadline_of: dict[str,
     return hosted
 
 
+def wait_ready(hosted: dict[str, Any]) -> None:
+    """Wait for the isolated FMUs' processes to be ready, outside any call deadline
+    (their start-up, under load, can take longer than an FMI call may)."""
+    from cosim.fmu.isolated import IsolatedFmu
+
+    isolated = [c for c in hosted.values() if isinstance(c, IsolatedFmu)]
+    try:
+        for component in isolated:
+            component.wait_ready()
+    except BaseException:
+        for component in isolated:
+            component.stop()
+        raise
+
+
 def _in_process(plan: Any, solver: Any, log_file: Path | None) -> Any:
     """The host of an FMU in the master's process: co-simulation, or Model Exchange with `solver`."""
     args = (plan.name, plan.path, plan.interface, plan.parameters, plan.period_ticks)

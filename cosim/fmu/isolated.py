@@ -101,11 +101,17 @@ class IsolatedFmu:
         self._poll.register(master_rx, select.POLLIN)
         _send(self._tx, b"C", json.dumps(config).encode())
 
-    def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
-        """Wait for the process, then initialize the FMU there at t0."""
+    def wait_ready(self) -> None:
+        """Wait for the process to have loaded the FMU (imports, unzipping: not an FMI
+        call, so not under the call deadline; the run does it before tick 0's calls)."""
         if not self._ready:
-            self._receive("R", None, t0, READY_TIMEOUT_S)
+            self._receive("R", None, 0.0, READY_TIMEOUT_S)
             self._ready = True
+
+    def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Wait for the process (if `wait_ready` was not called), then initialize the FMU
+        there at t0."""
+        self.wait_ready()
         values = [inputs[n] for n in self._in_names]
         _send(self._tx, b"I", struct.pack(f"=d{len(values)}d", t0, *values))
         return self._outputs(self._receive("start", None, t0, self.deadline_s), None, t0)
