@@ -220,3 +220,16 @@ def test_ctrl_c_ends_a_run_hung_in_an_fmu_call(tmp_path, faulty_fmus, isolate):
         assert "component 'plant' did not return from its step at tick 20" in last
         assert manifest["cause"]["kind"] == "interrupted"
     assert left == []
+
+
+def test_the_readme_quotes_these_messages():
+    """README "Plants: built-in FMUs and your own" quotes the messages asserted above
+    (with the default deadline of 10 s)."""
+    readme = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    quoted = [_message(mode, isolate, "").replace("deadline of 1 s", "deadline of 10 s")
+              for mode in (SEGFAULT, EXIT, HANG) for isolate in (False, True)]
+    quoted += [_message(FATAL, False, _fatal_call("FaultyME", 2)),
+               "failed at tick 2001 (t=20.01 s): " + _message(SEGFAULT, False, ""),
+               "stopped by component 'vehicle' at tick 900 (t=9 s): the FMU asked to "
+               "terminate the simulation"]
+    assert [q for q in quoted if q not in readme] == []

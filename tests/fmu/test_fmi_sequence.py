@@ -77,12 +77,19 @@ def test_after_fatal_no_call_after_error_only_free(faulty_fmus, calls, model, ve
     assert calls == allowed
 
 
+@pytest.mark.parametrize("model, options", [
+    ("Faulty", {"step_size": 0.01}),
+    ("FaultyME", {"fmi_type": "ModelExchange", "record_events": True})])
 @pytest.mark.parametrize("version", [2, 3])
-def test_the_step_that_asks_to_terminate_is_recorded_as_fmpy_does(faulty_fmus, version):
-    path = faulty_fmus["Faulty", version]
-    reference = fmpy.simulate_fmu(str(path), stop_time=0.1, step_size=0.01, output_interval=0.01,
+def test_the_step_that_asks_to_terminate_is_recorded_as_fmpy_does(faulty_fmus, version, model,
+                                                                   options):
+    """Faulty asks in its doStep to t = 0.03; FaultyME at its time event t = 0.03
+    (newDiscreteStates / updateDiscreteStates): the rows are fmpy's up to that point,
+    for FaultyME the last one its event row (record_events)."""
+    path = faulty_fmus[model, version]
+    reference = fmpy.simulate_fmu(str(path), stop_time=0.1, output_interval=0.01,
                                   start_values={"fault_mode": TERMINATE, "fault_time": 0.03},
-                                  output=["y", "u_echo"])
+                                  output=["y", "u_echo"], **options)
     fmu = _faulty(path, TERMINATE)
     rows, ended = _run(fmu, 10)
     assert isinstance(ended, StopRequested) and (ended.tick, ended.time) == (3, 0.03)
@@ -92,22 +99,15 @@ def test_the_step_that_asks_to_terminate_is_recorded_as_fmpy_does(faulty_fmus, v
     assert [k * 0.01 for k in range(len(rows))] == list(reference["time"])
 
 
-@pytest.mark.parametrize("version", [2, 3])
-def test_a_model_exchange_termination_request_is_recorded_as_fmpy_does(faulty_fmus, version):
-    """FaultyME asks at its time event t = 0.03 (newDiscreteStates / updateDiscreteStates):
-    the rows are fmpy's up to that point, the last one its event row (record_events)."""
-    path = faulty_fmus["FaultyME", version]
-    reference = fmpy.simulate_fmu(str(path), fmi_type="ModelExchange", stop_time=0.1,
-                                  output_interval=0.01, record_events=True,
-                                  start_values={"fault_mode": TERMINATE, "fault_time": 0.03},
-                                  output=["y", "u_echo"])
-    fmu = _faulty(path, TERMINATE)
+def test_a_model_exchange_request_inside_a_tick_says_when(faulty_fmus):
+    """FaultyME asks at t = 0.025, in the step of tick 3 (to t = 0.03): that tick's row
+    holds the outputs at 0.025."""
+    fmu = _faulty(faulty_fmus["FaultyME", 3], TERMINATE, fault_time=0.025)
     rows, ended = _run(fmu, 10)
-    assert isinstance(ended, StopRequested) and (ended.tick, ended.time) == (3, 0.03)
-    rows.append(ended.outputs)
     fmu.stop()
-    assert [(r["y"], r["u_echo"]) for r in rows] == [(r["y"], r["u_echo"]) for r in reference]
-    assert [k * 0.01 for k in range(len(rows))] == list(reference["time"])
+    assert isinstance(ended, StopRequested) and (ended.tick, ended.time) == (3, 0.03)
+    assert len(rows) == 3 and ended.outputs["y"] == pytest.approx(0.025, abs=1e-12)
+    assert "the FMU asked to terminate the simulation at t=0.025 s (" in ended.reason
 
 
 def test_an_error_quotes_the_fmus_last_logged_message_and_log_goes_to_run_log(

@@ -181,3 +181,39 @@ def test_a_termination_request_from_completed_integrator_step_ends_the_run(test_
     comp.stop()
     assert (asked.value.tick, asked.value.time) == (1, 0.01)
     assert asked.value.outputs["y"] == pytest.approx(2.0 * (1.0 - np.exp(-0.01 / 0.5)), rel=1e-8)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_a_fatal_status_inside_cvode_fails_the_step_and_no_fmi_call_follows(
+        test_fmu, version, monkeypatch) -> None:
+    """CVode calls the derivatives from C: a Fatal there ends the step with the failure
+    (no traceback, no further integration) and no FMI function is called after it."""
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import FMU2Model
+    from fmpy.fmi3 import FMU3Model
+
+    from cosim.errors import ComponentFailure
+
+    cls = FMU2Model if version == 2 else FMU3Model
+    derivatives = "getDerivatives" if version == 2 else "getContinuousStateDerivatives"
+    made, state = [], {"armed": False}
+    for name in (derivatives, "getEventIndicators", "setTime", "setContinuousStates",
+                 "getContinuousStates", "completedIntegratorStep", "enterEventMode",
+                 "terminate", "freeInstance"):
+        def spy(self, *args, _original=getattr(cls, name), _name=name):
+            made.append(_name)
+            if _name == derivatives and state["armed"]:
+                state["armed"], state["fatal_at"] = False, len(made)
+                raise FMICallException(f"fmi{version}GetDerivatives", 4)
+            return _original(self, *args)
+        monkeypatch.setattr(cls, name, spy)
+    comp = lag_component(test_fmu("LagME", version))
+    comp.start(0.0, {"u": 1.0})
+    comp.step(1, 0.01, {"u": 1.0})
+    state["armed"] = True
+    with pytest.raises(ComponentFailure, match="failed with status 4") as failed:
+        comp.step(2, 0.02, {"u": 1.0})
+    comp.stop()
+    assert failed.value.details == {"kind": "fmi_status", "status": "Fatal"}
+    assert (failed.value.tick, failed.value.time) == (2, 0.02)
+    assert made[state["fatal_at"]:] == []
