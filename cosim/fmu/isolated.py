@@ -245,8 +245,9 @@ def serve(rx: int, tx: int) -> int:
     if frame is None or frame[0] != b"C":
         return 2
     config = json.loads(frame[1])
+    fmu = _host(config)
     _send(tx, b"R", b"")
-    return _loop(_host(config), rx, tx)
+    return _loop(fmu, rx, tx)
 
 
 def _host(config: dict[str, Any]) -> Any:

@@ -64,6 +64,8 @@ class ModelExchangeComponent(FmuInstance):
         self.outputs: tuple[Port, ...] = tuple(interface.outputs)
         self.parameters = {str(k): float(v) for k, v in parameters.items()}
         self.settings = dict(solver)
+        if self.settings["method"] == "cvode":  # loaded now, not in start (under its deadline)
+            import fmpy.sundials  # noqa: F401
         self.fmi3 = str(interface.fmi_version).startswith("3")
         vrs = interface.value_references
         missing = sorted(set(self.parameters) - set(vrs))

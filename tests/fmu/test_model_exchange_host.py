@@ -217,3 +217,28 @@ def test_a_fatal_status_inside_cvode_fails_the_step_and_no_fmi_call_follows(
     assert failed.value.details == {"kind": "fmi_status", "status": "Fatal"}
     assert (failed.value.tick, failed.value.time) == (2, 0.02)
     assert made[state["fatal_at"]:] == []
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_an_isolated_model_exchange_fmu_gives_the_same_bits(tmp_path, test_fmu, version) -> None:
+    """isolate: true runs the same host and solver in a process of its own: the bouncing
+    ball's state and time events and the lag's input event give identical signals."""
+    ball, lag = test_fmu("BouncingBallME", version), test_fmu("LagME", version)
+    results = []
+    for isolate in ("false", "true"):
+        folder = tmp_path / isolate
+        folder.mkdir()
+        yaml = scenario_file(folder, f"ball: {{fmu: {ball}, isolate: {isolate}}}\n"
+                             f"  lag: {{fmu: {lag}, interface: model_exchange, isolate: {isolate}, "
+                             "solver: {method: rk4, max_step: 0.01}}", 3.5,
+                             extra="sources:\n  u: {kind: step, initial: 0.0, final: 1.0, "
+                                   "at: 0.5}\nconnections:\n  - u.value -> lag.u\n")
+        columns, manifest = run(folder, yaml)
+        metrics = json.loads((folder / "run" / "metrics.json").read_text())
+        results.append((columns, {k: v for k, v in metrics.items() if k.endswith("_events")}))
+    (ours, events), (isolated, isolated_events) = results
+    assert list(ours) == list(isolated) and len(ours["time"]) == 351
+    assert all(np.array_equal(ours[k], isolated[k]) for k in ours)
+    assert events == isolated_events
+    assert (events["ball.state_events"], events["ball.time_events"]) == (5.0, 1.0)
+    assert events["lag.input_events"] == 1.0
