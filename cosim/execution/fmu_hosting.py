@@ -2,8 +2,9 @@
 
 Each local FMU component is hosted in the master's process (`FmuComponent`,
 or `ModelExchangeComponent` for a Model Exchange FMU) or, with `isolate: true`,
-in a local process of its own (`IsolatedFmu`, either kind); a second instance of an FMU that declares canBeInstantiatedOnlyOncePerProcess
-is isolated automatically. `log: true` (or `--fmu-log` for all) sends an
+in a local process of its own (`IsolatedFmu`, either kind); a second instance
+of an FMU that declares canBeInstantiatedOnlyOncePerProcess is isolated
+automatically. `log: true` (or `--fmu-log` for all) sends an
 FMU's messages to run.log. The start time is the scenario's, else the FMUs'
 DefaultExperiment startTime, else 0; every component's call deadline is its
 `deadline:`, else the run's `--deadline`.

@@ -4,11 +4,11 @@
 `python -m cosim.fmu.isolated` at once (its imports overlap the master's
 start-up) and exchanges fixed binary frames with it; the process hosts the
 FMU through the same host as the master does in-process (`FmuComponent`, or
-`ModelExchangeComponent` with its solver), so the results are bit-identical. A crash of the FMU (segfault, abort, exit) kills
-only that process: the master reads the end of the pipe, takes its exit
-status and fails the run with the usual one-line message; a call that does
-not return within the deadline gets the process killed and the same kind of
-message. The process dies with the master (PR_SET_PDEATHSIG) and ignores
+`ModelExchangeComponent` with its solver), so the results are bit-identical.
+A crash of the FMU (segfault, abort, exit) kills only that process: the
+master reads the end of the pipe, takes its exit status and fails the run
+with the usual one-line message; a call that does not return within the
+deadline gets the process killed and the same kind of message. The process dies with the master (PR_SET_PDEATHSIG) and ignores
 Ctrl-C (the master decides).
 
 Why pipes and not Zenoh: the process is always local and private to this
