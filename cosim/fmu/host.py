@@ -75,7 +75,7 @@ class FmuComponent(FmuInstance):
         """Instantiate, set parameters and inputs, initialize at t0, read outputs."""
         self._t_prev = self.log.time = t0
         try:
-            self._instantiate(model_exchange=False)
+            self._instantiate()
             fmu = self._fmu
             if self.parameters:
                 self._set_real(self._param_vrs, list(self.parameters.values()))

@@ -110,6 +110,7 @@ class FmuInstance:
     name: str
     path: Path
     interface: Any
+    _model_exchange = False  # which interface of the FMU `_instantiate` instantiates
 
     def __init__(self, log_file: str | Path | None) -> None:
         sink = open(log_file, "a", encoding="utf-8") if log_file is not None else None
@@ -121,9 +122,10 @@ class FmuInstance:
         self._initialized = False
         self._fatal = False  # after Fatal, FMI allows no call at all
 
-    def _instantiate(self, model_exchange: bool) -> None:
+    def _instantiate(self) -> None:
         self._unzipped, self._fmu, self._callbacks = instantiate(
-            self.path, self.interface, self.name, self.log, model_exchange, logging_on=True)
+            self.path, self.interface, self.name, self.log, self._model_exchange,
+            logging_on=True)
 
     def _release(self) -> None:
         """Terminate (when initialized), free the instance, remove its files, close the log.

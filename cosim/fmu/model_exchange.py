@@ -54,6 +54,7 @@ class ModelExchangeComponent(FmuInstance):
     """
 
     direct_feedthrough = False  # inputs held over [t_prev, t), as for co-simulation
+    _model_exchange = True
 
     def __init__(self, name: str, path: str | Path, interface: Any,
                  parameters: Mapping[str, float], period_ticks: int,
@@ -84,7 +85,7 @@ class ModelExchangeComponent(FmuInstance):
         """Instantiate, set parameters and inputs, initialize, settle the initial event."""
         self._t_prev = self.log.time = t0
         try:
-            self._instantiate(model_exchange=True)
+            self._instantiate()
             fmu = self._fmu
             if self.parameters:
                 self._set(list(self.interface.value_references[n] for n in self.parameters),
