@@ -1,9 +1,10 @@
 """How a run hosts its local FMUs, and the settings it takes from them.
 
-Each local FMU component is hosted in the master's process (`FmuComponent`)
-or, with `isolate: true`, in a local process of its own (`IsolatedFmu`); a
-second instance of an FMU that declares canBeInstantiatedOnlyOncePerProcess
-is isolated automatically. `log: true` (or `--fmu-log` for all) sends an
+Each local FMU component is hosted in the master's process (`FmuComponent`,
+or `ModelExchangeComponent` for a Model Exchange FMU) or, with `isolate: true`,
+in a local process of its own (`IsolatedFmu`, either kind); a second instance
+of an FMU that declares canBeInstantiatedOnlyOncePerProcess is isolated
+automatically. `log: true` (or `--fmu-log` for all) sends an
 FMU's messages to run.log. The start time is the scenario's, else the FMUs'
 DefaultExperiment startTime, else 0; every component's call deadline is its
 `deadline:`, else the run's `--deadline`.
@@ -69,27 +70,34 @@ def host_fmus(scenario: Any, plans: list[Any], out: Path, deadline_of: dict[str,
     for plan in plans:
         spec = scenario.components[plan.name]
         log_file = out / RUN_LOG if (spec.log or fmu_log) else None
-        if getattr(plan, "solver", None) is not None:  # a Model Exchange FMU: we integrate it
-            if spec.isolate:
-                raise UserError(f"{scenario.where(('components', plan.name, 'isolate'))}: "
-                                "isolate: true is not available for a Model Exchange FMU yet")
-            from cosim.fmu.model_exchange import ModelExchangeComponent
-
-            hosted[plan.name] = ModelExchangeComponent(plan.name, plan.path, plan.interface,
-                                                       plan.parameters, plan.period_ticks,
-                                                       plan.solver)
-            continue
+        solver = getattr(plan, "solver", None)  # a Model Exchange FMU: we integrate it
         if spec.isolate or _only_once(plan) and _identifier(plan) in loaded:
             from cosim.fmu.isolated import IsolatedFmu
 
             hosted[plan.name] = IsolatedFmu(plan.name, plan.path, plan.interface,
                                             dict(spec.variables), plan.parameters,
-                                            plan.period_ticks, deadline_of[plan.name], log_file)
+                                            plan.period_ticks, deadline_of[plan.name], log_file,
+                                            solver, getattr(spec, "interface", None))
             continue
         loaded.add(_identifier(plan))
-        hosted[plan.name] = hosted_fmu(plan.name, plan.path, plan.interface,
-                                       plan.parameters, plan.period_ticks, log_file)
+        hosted[plan.name] = hosted_fmu(plan.name, plan.path, plan.interface, plan.parameters,
+                                       plan.period_ticks, log_file, solver=solver)
     return hosted
+
+
+def wait_ready(hosted: dict[str, Any]) -> None:
+    """Wait for the isolated FMUs' processes to be ready, outside any call deadline
+    (their start-up, under load, can take longer than an FMI call may)."""
+    from cosim.fmu.isolated import IsolatedFmu
+
+    isolated = [c for c in hosted.values() if isinstance(c, IsolatedFmu)]
+    try:
+        for component in isolated:
+            component.wait_ready()
+    except BaseException:
+        for component in isolated:
+            component.stop()
+        raise
 
 
 def _identifier(plan: Any) -> str:
@@ -97,14 +105,16 @@ def _identifier(plan: Any) -> str:
 
 
 def _only_once(plan: Any) -> bool:
-    """Whether the FMU declares canBeInstantiatedOnlyOncePerProcess."""
-    cs = getattr(plan.interface.model_description, "coSimulation", None)
-    return bool(getattr(cs, "canBeInstantiatedOnlyOncePerProcess", False))
+    """Whether the FMU declares canBeInstantiatedOnlyOncePerProcess (for the interface used)."""
+    md = plan.interface.model_description
+    me = getattr(plan, "solver", None) is not None
+    description = getattr(md, "modelExchange" if me else "coSimulation", None)
+    return bool(getattr(description, "canBeInstantiatedOnlyOncePerProcess", False))
 
 
 def is_local_call(hosted: Any) -> bool:
     """Whether a hosted component's calls run in the master's process (the supervisor's watch)."""
-    from cosim.fmu.host import FmuComponent
+    from cosim.fmu.instance import FmuInstance
     from cosim.transport.inproc import InprocComponent
 
-    return isinstance(hosted, (FmuComponent, InprocComponent))
+    return isinstance(hosted, (FmuInstance, InprocComponent))

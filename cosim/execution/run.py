@@ -300,6 +300,7 @@ def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock, ou
         from cosim.transport.inproc import InprocComponent
 
         hosted.update({l.name: InprocComponent(l) for l in prepared.launches})
+    fmu_hosting.wait_ready(hosted)
     clock.mark("components_ready")
     return {name: hosted[name] for name in prepared.names}
 

@@ -9,16 +9,10 @@ that this step path stays as it is). The step is one C call through the
 stepping shim (`cosim.fmu.stepper`, compiled into the per-user cache like the
 FMUs), or, when the shim cannot be built (no compiler), three calls of the
 FMU's functions from Python; both make the same FMI calls with the same
-arguments, so the outputs are the same bits. The shim also gives each FMI 2
-instance a logger of its own (fmpy's proxy has one for the whole process).
-`step_values` is the same step on plain floats, the master's values lane
-(`cosim.engine.hosting`). Every FMI error becomes a `ComponentFailure` carrying
-the last messages the FMU logged (logging is always on; with `log_file` every
-message also goes to the run's run.log, warnings and errors to the terminal too).
-
-FMI call sequence: after a Fatal status no FMI function is called any more
-(not even freeInstance, which FMI forbids then); after an Error only
-freeInstance. A termination request (FMI 2: Discard with fmi2Terminated, FMI 3:
+arguments, so the outputs are the same bits. `step_values` is the same step on
+plain floats, the master's values lane (`cosim.engine.hosting`). Instantiation, the FMU's log, its errors and FMI's call-sequence
+rules are those of every in-process host (`cosim.fmu.instance.FmuInstance`). A
+termination request (FMI 2: Discard with fmi2Terminated, FMI 3:
 terminateSimulation) raises `StopRequested` with the outputs of that step, which
 the master records before it ends the run normally.
 """
@@ -26,88 +20,21 @@ the master records before it ends the run normally.
 from __future__ import annotations
 
 import ctypes
-import shutil
-import sys
-from collections import deque
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import fmpy
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Terminated)
-from fmpy.fmi3 import FMU3Model, FMU3Slave
-from fmpy.logging import addLoggerProxy
+from fmpy.fmi2 import fmi2Terminated
 
 from cosim.component import Port, Value
 from cosim.engine.values import picker
 from cosim.errors import ComponentFailure, FmuInterfaceError, StopRequested
 from cosim.fmu import stepper
-
-_STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
-FATAL = 4
-LOG_KEEP = 8  # last FMU log messages kept for error reports
-ECHO_LIMIT = 20  # warnings and errors shown on the terminal; the rest only in run.log
+from cosim.fmu.instance import FmuInstance
 
 
-class FmuLog:
-    """Keeps the last messages an FMU logged (FMI 2 logger / FMI 3 logMessage).
-
-    Args:
-        component: the component's name, for the lines of run.log and the terminal.
-        sink: a text file (run.log, opened for appending) that gets every
-            message; None: messages are only kept for error reports.
-    """
-
-    def __init__(self, component: str = "", sink: Any = None) -> None:
-        self.messages: deque[str] = deque(maxlen=LOG_KEEP)
-        self.problems: deque[str] = deque(maxlen=LOG_KEEP)  # warnings, errors and fatals
-        self.component, self.sink, self.echoed = component, sink, 0
-        self.time = 0.0  # the time of the call under way, for the lines of run.log
-
-    def add(self, status: int, category: bytes | None, message: bytes | None) -> None:
-        """Record one message (bytes from the C side)."""
-        text = (message or b"").decode("utf-8", "replace").strip()
-        cat = (category or b"").decode("utf-8", "replace")
-        entry = f"[{_STATUS.get(status, status)}{'/' + cat if cat else ''}] {text}"
-        self.messages.append(entry)
-        if status in (1, 3, 4):
-            self.problems.append(entry)
-        if self.sink is not None:
-            self._write(status, entry)
-
-    def _write(self, status: int, entry: str) -> None:
-        line = f"t={self.time:.10g} {self.component}: {entry}\n"
-        self.sink.write(line)
-        self.sink.flush()
-        if status in (1, 3, 4) and self.echoed < ECHO_LIMIT:  # warning, error, fatal
-            self.echoed += 1
-            more = " (further messages only in run.log)" if self.echoed == ECHO_LIMIT else ""
-            sys.stderr.write(f"FMU {line.rstrip()}{more}\n")
-
-    def close(self) -> None:
-        """Close the sink (run.log) if there is one."""
-        if self.sink is not None:
-            self.sink.close()
-            self.sink = None
-
-    def fmi2(self, env, instance, status, category, message) -> None:  # noqa: ANN001
-        """FMI 2 logger callback (message already formatted by fmpy's proxy)."""
-        self.add(status, category, message)
-
-    def fmi3(self, env, status, category, message) -> None:  # noqa: ANN001
-        """FMI 3 logMessage callback."""
-        self.add(status, category, message)
-
-    def text(self) -> str:
-        """The last warnings and errors logged (else the last message), or a note that there were none."""
-        if self.problems:
-            return "; ".join(self.problems)
-        return self.messages[-1] if self.messages else "the FMU logged no message"
-
-
-class FmuComponent:
+class FmuComponent(FmuInstance):
     """HostedComponent around one FMU instance.
 
     Args:
@@ -150,17 +77,10 @@ class FmuComponent:
             raise FmuInterfaceError(f"component {name!r}: FMU {self.path.name} has no "
                                     f"parameter {', '.join(map(repr, unknown))}")
         self._param_vrs = [vrs[n] for n in self.parameters]
-        sink = open(log_file, "a", encoding="utf-8") if log_file is not None else None
-        self.log = FmuLog(name, sink)
-        self._fmu: Any = None
-        self._shim: Any = None  # the stepping shim library, None: fmpy's per-call path
+        super().__init__(log_file)
         self._stepper: stepper.Stepper | None = None  # None: the per-call path
         self._pick_inputs = picker(self._in_names)
         self.value_names = (tuple(self._in_names), tuple(self._out_names))  # the values lane
-        self._unzipped: str | None = None
-        self._t_prev = 0.0
-        self._initialized = False
-        self._fatal = False  # after Fatal, FMI allows no call at all
 
     def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Instantiate, set parameters and inputs, initialize at t0, read outputs."""
@@ -247,38 +167,16 @@ class FmuComponent:
             raise FMICallException(self._do_step_name, status)
         outputs = self._get_outputs()  # allowed in FMI 2's stepFailed state and FMI 3
         self._t_prev = t
-        raise StopRequested(self.name, tick, t, outputs, "the FMU asked to terminate the "
-                            f"simulation ({self.log.text()})")
+        raise self._stop_request(tick, t, outputs)
 
     def stop(self) -> dict[str, float]:
-        """Terminate (when initialized), free the instance and the unzipped files.
-
-        After a Fatal status nothing is called: the instance and its library
-        stay as they are until the process ends.
-        """
+        """Terminate (when initialized), free the instance and the unzipped files
+        (nothing after a Fatal status, see `FmuInstance`)."""
         try:
-            if self._fmu is not None and not self._fatal:
-                if self._initialized:
-                    self._fmu.terminate()
-                self._fmu.freeInstance()
-        except Exception as exc:
-            raise self._failure(None, self._t_prev, exc) from exc
+            self._release()
         finally:
-            if self._fatal and self._fmu is not None:
-                _keep_alive.append((self._fmu, getattr(self, "_callbacks", None)))
-            self._fmu = self._stepper = None
-            self._initialized = False
-            self.log.close()
-            if self._unzipped:
-                shutil.rmtree(self._unzipped, ignore_errors=True)
-                self._unzipped = None
+            self._stepper = None
         return {}
-
-    def _instantiate(self) -> None:
-        self._shim = stepper.library() if self.use_shim else None
-        self._unzipped, self._fmu, self._callbacks = instantiate(
-            self.path, self.interface, self.name, self.log, model_exchange=False, logging_on=True,
-            shim=self._shim)
 
     def _set_real(self, vrs: list[int], values: list[float]) -> None:
         if self.fmi3:
@@ -338,66 +236,3 @@ class FmuComponent:
             if status > 1:
                 raise FMICallException("fmi3GetFloat64" if self.fmi3 else "fmi2GetReal", status)
         return dict(zip(self._out_names, self._out_val[:]))
-
-    def _failure(self, tick: int | None, t: float, exc: Exception) -> ComponentFailure:
-        self._initialized = False  # after an FMI error only freeInstance is allowed
-        status = getattr(exc, "status", None)
-        if status == FATAL:
-            self._fatal = True
-        details = {"kind": "fmi_status", "status": _STATUS.get(status, status)} if status else {}
-        return ComponentFailure(self.name, tick, t, f"{exc} (FMU {self.path.name}: "
-                                f"{self.log.text()})", details)
-
-
-_keep_alive: list[Any] = []  # FMU instances (and their callbacks) after a Fatal status
-
-
-def _fmi2_callbacks(log: FmuLog, shim: Any) -> fmi2CallbackFunctions:
-    """FMI 2 callbacks whose logger feeds `log`.
-
-    The shim's logger when there is a shim (one per instance), else fmpy's C
-    proxy (one for the whole process: with two FMI 2 instances, the messages
-    of both go to the last one set up).
-
-    Args:
-        log: where the FMU's messages go.
-        shim: the stepping shim library (`cosim.fmu.stepper.library()`), or None.
-    """
-    if shim is not None:
-        return stepper.fmi2_callbacks(shim, log.add)
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(log.fmi2)
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
-    addLoggerProxy(ctypes.byref(callbacks))
-    return callbacks
-
-
-def instantiate(path: Path, interface: Any, name: str, log: Any, model_exchange: bool,
-                logging_on: bool, shim: Any = None) -> tuple[str, Any, Any]:
-    """Extract an FMU and instantiate it through fmpy, its messages going to `log`.
-
-    Args:
-        path: the .fmu file.
-        interface: its FmuInterface (model description, FMI version).
-        name: the instance name (the component's).
-        log: the FmuLog that receives the FMU's messages.
-        model_exchange: instantiate the Model Exchange interface (else co-simulation).
-        logging_on: ask the FMU to log its debug categories too.
-        shim: the stepping shim library, whose FMI 2 logger is per instance; None: fmpy's proxy.
-    Returns:
-        (extraction folder, the fmpy FMU object, the FMI 2 callbacks to keep alive or None).
-    """
-    md = interface.model_description
-    unzipped = fmpy.extract(str(path))
-    description = md.modelExchange if model_exchange else md.coSimulation
-    kwargs = dict(guid=md.guid, unzipDirectory=unzipped,
-                  modelIdentifier=description.modelIdentifier, instanceName=name)
-    if md.fmiVersion.startswith("3"):
-        fmu = (FMU3Model if model_exchange else FMU3Slave)(**kwargs)
-        fmu.instantiate(loggingOn=logging_on, logMessage=log.fmi3)
-        return unzipped, fmu, None
-    fmu = (FMU2Model if model_exchange else FMU2Slave)(**kwargs)
-    callbacks = _fmi2_callbacks(log, shim)
-    fmu.instantiate(callbacks=callbacks, loggingOn=logging_on)
-    return unzipped, fmu, callbacks

@@ -3,12 +3,12 @@
 `IsolatedFmu` is the master's HostedComponent: it starts
 `python -m cosim.fmu.isolated` at once (its imports overlap the master's
 start-up) and exchanges fixed binary frames with it; the process hosts the
-FMU through the same `FmuComponent` as the master does in-process, so the
-results are bit-identical. A crash of the FMU (segfault, abort, exit) kills
-only that process: the master reads the end of the pipe, takes its exit
-status and fails the run with the usual one-line message; a call that does
-not return within the deadline gets the process killed and the same kind of
-message. The process dies with the master (PR_SET_PDEATHSIG) and ignores
+FMU through the same host as the master does in-process (`FmuComponent`, or
+`ModelExchangeComponent` with its solver), so the results are bit-identical.
+A crash of the FMU (segfault, abort, exit) kills only that process: the
+master reads the end of the pipe, takes its exit status and fails the run
+with the usual one-line message; a call that does not return within the
+deadline gets the process killed and the same kind of message. The process dies with the master (PR_SET_PDEATHSIG) and ignores
 Ctrl-C (the master decides).
 
 Why pipes and not Zenoh: the process is always local and private to this
@@ -61,13 +61,17 @@ class IsolatedFmu:
         period_ticks: master ticks between two steps.
         deadline_s: seconds an FMI call (one exchange) may take.
         log_file: run.log, or None (see `FmuComponent`).
+        solver: a Model Exchange FMU's resolved `solver:` settings (see
+            `ModelExchangeComponent`); None: co-simulation.
+        kind: the scenario's `interface:` (which interface of the FMU to describe).
     """
 
     direct_feedthrough = False
 
     def __init__(self, name: str, path: str | Path, interface: Any, variables: Mapping[str, str],
                  parameters: Mapping[str, float], period_ticks: int, deadline_s: float,
-                 log_file: str | Path | None = None) -> None:
+                 log_file: str | Path | None = None, solver: Mapping[str, Any] | None = None,
+                 kind: str | None = None) -> None:
         self.name, self.interface, self.period_ticks = name, interface, int(period_ticks)
         self.inputs: tuple[Port, ...] = tuple(interface.inputs)
         self.outputs: tuple[Port, ...] = tuple(interface.outputs)
@@ -80,7 +84,8 @@ class IsolatedFmu:
         config = {"name": name, "path": str(path), "variables": dict(variables),
                   "parameters": {k: float(v) for k, v in parameters.items()},
                   "period_ticks": self.period_ticks,
-                  "log_file": str(log_file) if log_file is not None else None}
+                  "log_file": str(log_file) if log_file is not None else None,
+                  "solver": dict(solver) if solver is not None else None, "kind": kind}
         self._spawn(config)
 
     def _spawn(self, config: dict[str, Any]) -> None:
@@ -97,11 +102,17 @@ class IsolatedFmu:
         self._poll.register(master_rx, select.POLLIN)
         _send(self._tx, b"C", json.dumps(config).encode())
 
-    def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
-        """Wait for the process, then initialize the FMU there at t0."""
+    def wait_ready(self) -> None:
+        """Wait for the process to have loaded the FMU (imports, unzipping: not an FMI
+        call, so not under the call deadline; the run does it before tick 0's calls)."""
         if not self._ready:
-            self._receive("R", None, t0, READY_TIMEOUT_S)
+            self._receive("R", None, 0.0, READY_TIMEOUT_S)
             self._ready = True
+
+    def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        """Wait for the process (if `wait_ready` was not called), then initialize the FMU
+        there at t0."""
+        self.wait_ready()
         values = self._in.flatten(inputs)
         _send(self._tx, b"I", struct.pack(f"=d{len(values)}d", t0, *values))
         return self._outputs(self._receive("start", None, t0, self.deadline_s), None, t0)
@@ -266,14 +277,19 @@ def serve(rx: int, tx: int) -> int:
     if frame is None or frame[0] != b"C":
         return 2
     config = json.loads(frame[1])
+    fmu = _host(config)
+    _send(tx, b"R", b"")
+    return _loop(fmu, rx, tx)
+
+
+def _host(config: dict[str, Any]) -> Any:
+    """The in-process host of the FMU the config names (as the master would host it)."""
     from cosim.fmu.interface import describe_fmu
     from cosim.fmu.typed import hosted_fmu
 
-    interface = describe_fmu(Path(config["path"]), config["variables"])
-    fmu = hosted_fmu(config["name"], config["path"], interface, config["parameters"],
-                     config["period_ticks"], config["log_file"])
-    _send(tx, b"R", b"")
-    return _loop(fmu, rx, tx)
+    interface = describe_fmu(Path(config["path"]), config["variables"], kind=config["kind"])
+    return hosted_fmu(config["name"], config["path"], interface, config["parameters"],
+                      config["period_ticks"], config["log_file"], solver=config["solver"])
 
 
 def _loop(fmu: Any, rx: int, tx: int) -> int:

@@ -15,12 +15,20 @@ each followed by event mode, the discrete-state iteration
 (newDiscreteStates / updateDiscreteStates) and a solver reset. An input that
 changes at a tick is an input event (event mode, then a reset), as a step in
 fmpy's input table is.
+
+Errors, the FMU's log and FMI's call-sequence rules (nothing after Fatal, only
+freeInstance after an Error) are those of every in-process host
+(`cosim.fmu.instance.FmuInstance`). A termination request (`terminateSimulation`
+out of newDiscreteStates / updateDiscreteStates or completedIntegratorStep)
+raises `StopRequested` with the outputs the FMU has when it asks, which the
+master records as the tick's row before it ends the run normally (fmpy's
+`simulate_fmu` stops there too; with `record_events=True` its last row is the
+same point).
 """
 
 from __future__ import annotations
 
 import math
-import shutil
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -28,14 +36,13 @@ from typing import Any
 import numpy as np
 
 from cosim.component import Port, Value
-from cosim.errors import ComponentFailure, FmuInterfaceError
-from cosim.fmu import stepper
-from cosim.fmu.host import FmuLog, instantiate
+from cosim.errors import ComponentFailure, FmuInterfaceError, StopRequested
+from cosim.fmu.instance import FmuInstance
 from cosim.fmu.solvers import make_solver
 from cosim.fmu.typed import TypedIO, needs_typed_io
 
 
-class ModelExchangeComponent:
+class ModelExchangeComponent(FmuInstance):
     """HostedComponent around one Model Exchange FMU instance.
 
     Args:
@@ -46,19 +53,23 @@ class ModelExchangeComponent:
         period_ticks: master ticks between two steps.
         solver: {"method": "cvode"|"rk4"|"euler", "rtol", "atol", "max_step"}, resolved
             (see `cosim.execution.prepare`).
+        log_file: run.log, or None (see `FmuInstance`).
     """
 
     direct_feedthrough = False  # inputs held over [t_prev, t), as for co-simulation
+    _model_exchange = True
 
     def __init__(self, name: str, path: str | Path, interface: Any,
                  parameters: Mapping[str, float], period_ticks: int,
-                 solver: Mapping[str, Any]) -> None:
+                 solver: Mapping[str, Any], log_file: str | Path | None = None) -> None:
         self.name, self.path, self.interface = name, Path(path), interface
         self.period_ticks = int(period_ticks)
         self.inputs: tuple[Port, ...] = tuple(interface.inputs)
         self.outputs: tuple[Port, ...] = tuple(interface.outputs)
         self.parameters = {str(k): float(v) for k, v in parameters.items()}
         self.settings = dict(solver)
+        if self.settings["method"] == "cvode":  # loaded now, not in start (under its deadline)
+            import fmpy.sundials  # noqa: F401
         self.fmi3 = str(interface.fmi_version).startswith("3")
         vrs = interface.value_references
         missing = sorted(set(self.parameters) - set(vrs))
@@ -69,18 +80,14 @@ class ModelExchangeComponent:
         self._out_vr = [vrs[p.name] for p in self.outputs]
         self._held: list[Any] | None = None
         self._io: TypedIO | None = None  # ports of other types than Float64, or arrays
-        self.log = FmuLog()
-        self._fmu: Any = None
+        super().__init__(log_file)
         self._solver: Any = None
-        self._unzipped: str | None = None
-        self._t_prev = 0.0
         self._next_event: float | None = None
-        self._initialized = False
         self.events = {"time": 0, "state": 0, "step": 0, "input": 0}
 
     def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Instantiate, set parameters and inputs, initialize, settle the initial event."""
-        self._t_prev = t0
+        self._t_prev = self.log.time = t0
         try:
             self._instantiate()
             fmu = self._fmu
@@ -107,6 +114,7 @@ class ModelExchangeComponent:
 
     def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Hold the inputs (an input event if they changed), integrate to t, read the outputs."""
+        self.log.time = t
         if self._io is not None:
             self._io.tick = tick
         try:
@@ -114,32 +122,22 @@ class ModelExchangeComponent:
                 self.events["input"] += 1
                 self._fmu.enterEventMode()
                 self._set_inputs(inputs)
-                self._update_discrete_states(self._t_prev)
+                self._update_discrete_states(self._t_prev, tick, t)
                 self._fmu.enterContinuousTimeMode()
                 self._solver.reset(self._t_prev)
             self._integrate(tick, t)
             self._t_prev = t
             return self._get_outputs()
-        except ComponentFailure:
+        except (ComponentFailure, StopRequested):
             raise
         except Exception as exc:
             raise self._failure(tick, t, exc) from exc
 
     def stop(self) -> dict[str, float]:
-        """Terminate (when initialized), free the instance and the unzipped files; event counts."""
-        try:
-            if self._fmu is not None:
-                if self._initialized:
-                    self._fmu.terminate()
-                self._fmu.freeInstance()
-        except Exception as exc:
-            raise self._failure(None, self._t_prev, exc) from exc
-        finally:
-            self._fmu = self._solver = None
-            self._initialized = False
-            if self._unzipped:
-                shutil.rmtree(self._unzipped, ignore_errors=True)
-                self._unzipped = None
+        """Terminate (when initialized), free the instance and the unzipped files
+        (nothing after a Fatal status, see `FmuInstance`); the event counts."""
+        self._solver = None
+        self._release()
         return {f"{kind}_events": float(n) for kind, n in self.events.items()}
 
     def _integrate(self, tick: int, t_end: float) -> None:
@@ -159,33 +157,42 @@ class ModelExchangeComponent:
             if needs_step_call:
                 step_event, terminate = fmu.completedIntegratorStep()
                 if terminate:
-                    raise self._termination(tick, time)
+                    self._terminated(time, tick, t_end)
             if time_event or state_event or step_event:
                 for kind, happened in (("time", time_event), ("state", state_event),
                                        ("step", step_event)):
                     self.events[kind] += int(bool(happened))
                 fmu.enterEventMode()
-                self._update_discrete_states(time, tick)
+                self._update_discrete_states(time, tick, t_end)
                 fmu.enterContinuousTimeMode()
                 self._solver.reset(time)
 
-    def _update_discrete_states(self, time: float, tick: int | None = None) -> None:
-        """The event iteration; remembers the next time event."""
+    def _update_discrete_states(self, time: float, tick: int | None = None,
+                                t_tick: float | None = None) -> None:
+        """The event iteration at `time` (in the step of `tick`, to `t_tick`; None: at
+        the start); remembers the next time event."""
         update = self._fmu.updateDiscreteStates if self.fmi3 else self._fmu.newDiscreteStates
         needed = True
         while needed:
             needed, terminate, _, _, defined, next_time = update()
             if terminate:
-                raise self._termination(tick, time)
+                self._terminated(time, tick, t_tick)
         self._next_event = next_time if defined else None
 
     def _instantiate(self) -> None:
-        self._unzipped, self._fmu, self._callbacks = instantiate(
-            self.path, self.interface, self.name, self.log, model_exchange=True, logging_on=False,
-            shim=stepper.library())  # for its per-instance FMI 2 logger
+        super()._instantiate()
         if needs_typed_io(self.interface):
             self._io = TypedIO(self.name, self._fmu, self.fmi3, self.inputs, self.outputs,
                                self.interface.value_references)
+
+    def _terminated(self, time: float, tick: int | None, t_tick: float | None) -> None:
+        """The FMU asked to terminate at `time`: StopRequested in a step (the tick's
+        row gets the outputs it has now), a failure during initialization."""
+        if tick is None or t_tick is None:
+            raise ComponentFailure(self.name, None, time, "the FMU asked to terminate the "
+                                   f"simulation during initialization ({self.log.text()})")
+        where = "" if math.isclose(time, t_tick) else f" at t={time:.10g} s"
+        raise self._stop_request(tick, t_tick, self._get_outputs(), where)
 
     def _set(self, vrs: list[int], values: list[float]) -> None:
         if vrs:
@@ -213,12 +220,3 @@ class ModelExchangeComponent:
             return {}
         values = (self._fmu.getFloat64 if self.fmi3 else self._fmu.getReal)(self._out_vr)
         return {p.name: float(v) for p, v in zip(self.outputs, values)}
-
-    def _termination(self, tick: int | None, t: float) -> ComponentFailure:
-        return ComponentFailure(self.name, tick, t, "the FMU asked to terminate the "
-                                f"simulation: {self.log.text()}")
-
-    def _failure(self, tick: int | None, t: float, exc: Exception) -> ComponentFailure:
-        self._initialized = False  # after an FMI error only freeInstance is allowed
-        return ComponentFailure(self.name, tick, t, f"{exc} (FMU {self.path.name}: "
-                                f"{self.log.text()})")

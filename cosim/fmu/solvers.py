@@ -8,6 +8,12 @@ to t_next or to the first root of the event indicators, as in
 unless `atol` is given. `FixedStep` takes one step of at most `max_step` per
 call; RK4 locates a zero crossing by bisection on the step length (to
 `EVENT_TOL` s), Euler reports it at the end of the step, as fmpy's Euler does.
+
+CVode calls the FMU back from C (derivatives, event indicators, states, time):
+an FMI error raised there cannot cross CVode's frames (ctypes would print a
+traceback and let CVode go on), so `CallGuard` keeps the first one, makes every
+later callback call nothing (after Fatal, FMI forbids any call), and the
+solver's `step` and `reset` raise it when CVode returns.
 """
 
 from __future__ import annotations
@@ -46,9 +52,15 @@ def make_solver(settings: dict[str, Any], fmu: Any, md: Any, fmi3: bool, t0: flo
         return FixedStep(settings["method"], settings["max_step"], set_time=fmu.setTime, **args)
     from fmpy.sundials import CVodeSolver
 
-    solver = CVodeSolver(get_nominals=fmu.getNominalsOfContinuousStates, set_time=fmu.setTime,
-                         input=_NoInput(), startTime=t0, maxStep=settings["max_step"],
-                         relativeTolerance=settings["rtol"], **args)
+    guard = CallGuard()
+    args = {name: guard.wrap(function) if callable(function) else function
+            for name, function in args.items()}
+    solver = CVodeSolver(get_nominals=guard.wrap(fmu.getNominalsOfContinuousStates),
+                         set_time=guard.wrap(fmu.setTime), input=_NoInput(), startTime=t0,
+                         maxStep=settings["max_step"], relativeTolerance=settings["rtol"],
+                         **args)
+    guard.check()
+    solver.step, solver.reset = guard.checked(solver.step), guard.checked(solver.reset)
     if settings.get("atol") is not None:
         from fmpy.sundials.cvode import CVodeSVtolerances
 
@@ -56,6 +68,42 @@ def make_solver(settings: dict[str, Any], fmu: Any, md: Any, fmi3: bool, t0: flo
         CVodeSVtolerances(solver.cvode_mem, settings["rtol"], solver.abstol)
         solver.reset = _keep_atol(solver, settings["atol"])
     return solver
+
+
+class CallGuard:
+    """The FMU functions CVode calls back: the first FMI error is kept, later calls
+    call nothing, `check` raises the error (see the module)."""
+
+    def __init__(self) -> None:
+        self.error: Exception | None = None
+
+    def wrap(self, function: Any) -> Any:
+        """`function`, called only while no error happened; an error is kept."""
+        def guarded(*args: Any) -> Any:
+            if self.error is None:
+                try:
+                    return function(*args)
+                except Exception as exc:  # fmpy's FMICallException, from inside CVode
+                    self.error = exc
+            return None
+        return guarded
+
+    def checked(self, method: Any) -> Any:
+        """`method` (the solver's step or reset), raising the kept error after it."""
+        def call(*args: Any) -> Any:
+            try:
+                result = method(*args)
+            except RuntimeError:  # CVode failed: because of the FMU's error, if there is one
+                self.check()
+                raise
+            self.check()
+            return result
+        return call
+
+    def check(self) -> None:
+        """Raise the kept FMI error, if any."""
+        if self.error is not None:
+            raise self.error
 
 
 def _keep_atol(solver: Any, atol: float) -> Any:

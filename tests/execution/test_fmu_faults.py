@@ -1,10 +1,13 @@
-"""`cosim run` with a plant that crashes, exits, hangs, fails or asks to stop, in the
-master's process (the supervisor completes the run) and isolated (`isolate: true`),
-over the inproc and zenoh transports: exit code, the one-line message, one row
-per completed tick, the manifest's status and cause, no process left behind.
+"""`cosim run` with a plant that segfaults, aborts, exits, hangs, returns Fatal or Error
+or asks to stop, in the master's process (the supervisor completes the run) and
+isolated (`isolate: true`), over the inproc and zenoh transports: exit code, the
+one-line message, one row per completed tick, the manifest's status and cause, no
+process left behind.
 
 tests/fmus/Faulty fires its fault in the step that ends at fault_time = 0.2 s,
-tick 20: ticks 0..19 are complete, so signals.csv holds 20 rows.
+tick 20: ticks 0..19 are complete, so signals.csv holds 20 rows. FaultyME (Model
+Exchange, integrated by the master) fires it at its time event t = 0.2, in the
+same tick's step.
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ connections:
   - ctl.u -> plant.u
 """
 FAULT_TICK, FAULT_T = 20, 0.2
-ABORT, EXIT, HANG, FATAL, ERROR, TERMINATE = 2, 3, 4, 5, 6, 7
+SEGFAULT, ABORT, EXIT, HANG, FATAL, ERROR, TERMINATE = 1, 2, 3, 4, 5, 6, 7
 
 
 def run_cosim(tmp_path: Path, text: str, *options: str, interrupt_after: float | None = None):
@@ -104,42 +107,77 @@ def _check_failed(done, out: Path, left: list[str], cause: dict, message: str) -
     return manifest
 
 
-CASES = [  # mode, transports, expected cause, one-line message (in-process; isolated)
-    (ABORT, ("inproc", "zenoh"), {"kind": "signal", "signal": "SIGABRT"},
-     ("the master process was killed by SIGABRT in its step",
-      "its isolated process was killed by SIGABRT in its step")),
-    (EXIT, ("inproc",), {"kind": "exit", "exit_code": 3},
-     ("the master process exited with status 3 in its step",
-      "its isolated process exited with status 3 in its step")),
-    (HANG, ("inproc", "zenoh"), {"kind": "deadline", "deadline_s": 1.0},
-     ("no return from its step within the deadline of 1 s (the master process was ended)",
-      "no return from its step within the deadline of 1 s (its isolated process was ended)")),
-    (FATAL, ("inproc",), {"kind": "fmi_status", "status": "Fatal"},
-     ("fmi2DoStep failed with status 4 (fatal)", "fmi2DoStep failed with status 4 (fatal)")),
-    (ERROR, ("inproc",), {"kind": "fmi_status", "status": "Error"},
-     ("Faulty: injected error in the step from t = 0.19 to 0.2",) * 2),
-]
+SUPERVISED = (SEGFAULT, ABORT, EXIT, HANG)  # in the master's process, the supervisor reports these
+CAUSES = {
+    SEGFAULT: {"kind": "signal", "signal": "SIGSEGV"},
+    ABORT: {"kind": "signal", "signal": "SIGABRT"},
+    EXIT: {"kind": "exit", "exit_code": 3},
+    HANG: {"kind": "deadline", "deadline_s": 1.0},
+    FATAL: {"kind": "fmi_status", "status": "Fatal"},
+    ERROR: {"kind": "fmi_status", "status": "Error"},
+}
+
+
+def _message(mode: int, isolate: bool, fatal_call: str) -> str:
+    """The one-line message after the component, tick and time; `fatal_call`: the FMI
+    function that returns Fatal (e.g. fmi3DoStep)."""
+    where = "its isolated process" if isolate else "the master process"
+    if mode in (SEGFAULT, ABORT):
+        return f"{where} was killed by {CAUSES[mode]['signal']} in its step"
+    if mode == EXIT:
+        return f"{where} exited with status 3 in its step"
+    if mode == HANG:
+        return f"no return from its step within the deadline of 1 s ({where} was ended)"
+    if mode == FATAL:
+        return f"{fatal_call} failed with status 4 (fatal)"
+    return "Faulty: injected error in the step from t = 0.19 to 0.2"
+
+
+def _fatal_call(model: str, version: int) -> str:
+    if model == "FaultyME":
+        return "fmi2NewDiscreteStates" if version == 2 else "fmi3UpdateDiscreteStates"
+    return f"fmi{version}DoStep"
+
+
+def _matrix(model: str, modes: tuple[int, ...], transports: tuple[str, ...]) -> list:
+    """Every mode in-process and isolated over each transport; the FMI version alternates
+    over the placements, so that each mode and each placement meets both versions."""
+    cases = []
+    for mode in modes:
+        for isolate in (False, True):
+            for n, transport in enumerate(transports):
+                version = 2 + (int(isolate) + n) % 2
+                cases.append(pytest.param(model, version, mode, isolate, transport, id=(
+                    f"{model}-fmi{version}-mode{mode}-"
+                    f"{'isolated' if isolate else 'in-process'}-{transport}")))
+    return cases
+
+
+FAILURES = (_matrix("Faulty", (SEGFAULT, ABORT, EXIT, HANG, FATAL, ERROR), ("inproc", "zenoh"))
+            + _matrix("FaultyME", (FATAL,), ("inproc", "zenoh"))
+            + _matrix("FaultyME", (SEGFAULT, HANG), ("inproc",)))
 
 
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("isolate", [False, True], ids=["in-process", "isolated"])
-@pytest.mark.parametrize("mode, transport, cause, messages", [
-    pytest.param(m, tr, c, msg, id=f"mode{m}-{tr}") for m, trs, c, msg in CASES for tr in trs])
+@pytest.mark.parametrize("model, version, mode, isolate, transport", FAILURES)
 def test_a_faulty_plant_fails_the_run_with_every_completed_tick(
-        tmp_path, faulty_fmus, mode, transport, cause, messages, isolate):
-    text = SCENARIO.format(fmu=faulty_fmus["Faulty", 2], mode=mode, isolate=str(isolate).lower())
+        tmp_path, faulty_fmus, model, version, mode, isolate, transport):
+    text = SCENARIO.format(fmu=faulty_fmus[model, version], mode=mode,
+                           isolate=str(isolate).lower())
     done, out, left = run_cosim(tmp_path, text, "--transport", transport)
-    manifest = _check_failed(done, out, left, cause, messages[isolate])
-    assert manifest.get("completed_by") == ("supervisor" if not isolate and mode in
-                                            (ABORT, EXIT, HANG) else None)
+    manifest = _check_failed(done, out, left, CAUSES[mode],
+                             _message(mode, isolate, _fatal_call(model, version)))
+    assert manifest.get("completed_by") == ("supervisor" if not isolate and mode in SUPERVISED
+                                            else None)
 
 
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("version, isolate, transport", [
-    (2, False, "inproc"), (3, False, "zenoh"), (2, True, "zenoh"), (3, True, "inproc")])
+@pytest.mark.parametrize("model, version, mode, isolate, transport",
+                         _matrix("Faulty", (TERMINATE,), ("inproc", "zenoh"))
+                         + _matrix("FaultyME", (TERMINATE,), ("inproc", "zenoh")))
 def test_a_termination_request_ends_the_run_ok_with_the_step_that_asked(
-        tmp_path, faulty_fmus, version, isolate, transport):
-    text = SCENARIO.format(fmu=faulty_fmus["Faulty", version], mode=TERMINATE,
+        tmp_path, faulty_fmus, model, version, mode, isolate, transport):
+    text = SCENARIO.format(fmu=faulty_fmus[model, version], mode=mode,
                            isolate=str(isolate).lower())
     done, out, left = run_cosim(tmp_path, text, "--transport", transport)
     assert done.returncode == 0, done.stderr
@@ -182,3 +220,16 @@ def test_ctrl_c_ends_a_run_hung_in_an_fmu_call(tmp_path, faulty_fmus, isolate):
         assert "component 'plant' did not return from its step at tick 20" in last
         assert manifest["cause"]["kind"] == "interrupted"
     assert left == []
+
+
+def test_the_readme_quotes_these_messages():
+    """README "Plants: built-in FMUs and your own" quotes the messages asserted above
+    (with the default deadline of 10 s)."""
+    readme = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    quoted = [_message(mode, isolate, "").replace("deadline of 1 s", "deadline of 10 s")
+              for mode in (SEGFAULT, EXIT, HANG) for isolate in (False, True)]
+    quoted += [_message(FATAL, False, _fatal_call("FaultyME", 2)),
+               "failed at tick 2001 (t=20.01 s): " + _message(SEGFAULT, False, ""),
+               "stopped by component 'vehicle' at tick 900 (t=9 s): the FMU asked to "
+               "terminate the simulation"]
+    assert [q for q in quoted if q not in readme] == []

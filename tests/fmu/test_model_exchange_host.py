@@ -172,11 +172,76 @@ def test_a_step_event_from_completed_integrator_step_runs_the_event_iteration(
 
 
 def test_a_termination_request_from_completed_integrator_step_ends_the_run(test_fmu) -> None:
-    from cosim.errors import ComponentFailure
+    """The step that asked is the tick's row: the outputs at its end (y of the lag at 0.01,
+    one RK4 step: local error O((h / tau)^5), 1.3e-9 relative here)."""
+    from cosim.errors import StopRequested
 
     comp = lag_component(test_fmu("LagME", 3), method="rk4")
-    comp.start(0.0, {"u": 0.0})
+    comp.start(0.0, {"u": 1.0})
     comp._fmu.completedIntegratorStep = lambda: (False, True)
-    with pytest.raises(ComponentFailure, match="the FMU asked to terminate the simulation"):
-        comp.step(1, 0.01, {"u": 0.0})
+    with pytest.raises(StopRequested, match="the FMU asked to terminate the simulation") as asked:
+        comp.step(1, 0.01, {"u": 1.0})
     comp.stop()
+    assert (asked.value.tick, asked.value.time) == (1, 0.01)
+    assert asked.value.outputs["y"] == pytest.approx(2.0 * (1.0 - np.exp(-0.01 / 0.5)), rel=1e-8)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_a_fatal_status_inside_cvode_fails_the_step_and_no_fmi_call_follows(
+        test_fmu, version, monkeypatch) -> None:
+    """CVode calls the derivatives from C: a Fatal there ends the step with the failure
+    (no traceback, no further integration) and no FMI function is called after it."""
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import FMU2Model
+    from fmpy.fmi3 import FMU3Model
+
+    from cosim.errors import ComponentFailure
+
+    cls = FMU2Model if version == 2 else FMU3Model
+    derivatives = "getDerivatives" if version == 2 else "getContinuousStateDerivatives"
+    made, state = [], {"armed": False}
+    for name in (derivatives, "getEventIndicators", "setTime", "setContinuousStates",
+                 "getContinuousStates", "completedIntegratorStep", "enterEventMode",
+                 "terminate", "freeInstance"):
+        def spy(self, *args, _original=getattr(cls, name), _name=name):
+            made.append(_name)
+            if _name == derivatives and state["armed"]:
+                state["armed"], state["fatal_at"] = False, len(made)
+                raise FMICallException(f"fmi{version}GetDerivatives", 4)
+            return _original(self, *args)
+        monkeypatch.setattr(cls, name, spy)
+    comp = lag_component(test_fmu("LagME", version))
+    comp.start(0.0, {"u": 1.0})
+    comp.step(1, 0.01, {"u": 1.0})
+    state["armed"] = True
+    with pytest.raises(ComponentFailure, match="failed with status 4") as failed:
+        comp.step(2, 0.02, {"u": 1.0})
+    comp.stop()
+    assert failed.value.details == {"kind": "fmi_status", "status": "Fatal"}
+    assert (failed.value.tick, failed.value.time) == (2, 0.02)
+    assert made[state["fatal_at"]:] == []
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_an_isolated_model_exchange_fmu_gives_the_same_bits(tmp_path, test_fmu, version) -> None:
+    """isolate: true runs the same host and solver in a process of its own: the bouncing
+    ball's state and time events and the lag's input event give identical signals."""
+    ball, lag = test_fmu("BouncingBallME", version), test_fmu("LagME", version)
+    results = []
+    for isolate in ("false", "true"):
+        folder = tmp_path / isolate
+        folder.mkdir()
+        yaml = scenario_file(folder, f"ball: {{fmu: {ball}, isolate: {isolate}}}\n"
+                             f"  lag: {{fmu: {lag}, interface: model_exchange, isolate: {isolate}, "
+                             "solver: {method: rk4, max_step: 0.01}}", 3.5,
+                             extra="sources:\n  u: {kind: step, initial: 0.0, final: 1.0, "
+                                   "at: 0.5}\nconnections:\n  - u.value -> lag.u\n")
+        columns, manifest = run(folder, yaml)
+        metrics = json.loads((folder / "run" / "metrics.json").read_text())
+        results.append((columns, {k: v for k, v in metrics.items() if k.endswith("_events")}))
+    (ours, events), (isolated, isolated_events) = results
+    assert list(ours) == list(isolated) and len(ours["time"]) == 351
+    assert all(np.array_equal(ours[k], isolated[k]) for k in ours)
+    assert events == isolated_events
+    assert (events["ball.state_events"], events["ball.time_events"]) == (5.0, 1.0)
+    assert events["lag.input_events"] == 1.0

@@ -31,7 +31,9 @@
  *
  * variant.h (per model folder) gives the identifier, token and flags, so
  * tests/fmus/FaultyOnce builds the same code with
- * canBeInstantiatedOnlyOncePerProcess="true".
+ * canBeInstantiatedOnlyOncePerProcess="true", and tests/fmus/FaultyME as a
+ * Model Exchange FMU (FAULTY_MODEL_EXCHANGE) whose fault fires in the event
+ * iteration of the time event at fault_time.
  */
 #define _POSIX_C_SOURCE 200809L
 
@@ -42,6 +44,10 @@
 #include "model.h"
 #include "variable_table.h"
 #include "variant.h"
+
+#ifndef FAULTY_MODEL_EXCHANGE
+#define FAULTY_MODEL_EXCHANGE 0  /* variant.h of FaultyME sets 1 */
+#endif
 
 static const VariableInfo VARIABLES[] = {
 #define VAR MODEL_VARIABLE_TABLE_ROW
@@ -179,4 +185,37 @@ const ModelDefinition MODEL = {
     do_step,
 };
 
+#if FAULTY_MODEL_EXCHANGE
+/* Model Exchange (tests/fmus/FaultyME): no continuous state, y = t; the fault
+   fires in the event iteration at the time event fault_time. */
+static ModelStatus evaluate(double *values, void *state, double t, const ModelLogger *log)
+{
+    (void)state; (void)log;
+    values[VR_y] = t;
+    values[VR_y_f32] = (double)(float)t;
+    values[VR_u_echo] = values[VR_u];
+    return MODEL_OK;
+}
+
+static ModelStatus event_update(double *values, void *state, double t, ModelEvent *event,
+                                const ModelLogger *log)
+{
+    FaultyState *st = state;
+    int mode = (int)values[VR_fault_mode];
+    double fault_time = values[VR_fault_time];
+    if (mode == FAULT_NONE || st->fired) return MODEL_OK;
+    if (t < fault_time - 1e-9 * fmax(1.0, fabs(fault_time))) {
+        event->next_event_time = fault_time;
+        return MODEL_OK;
+    }
+    st->fired = 1;
+    ModelStatus status = fire(mode, t, 0.0, log);
+    if (status != MODEL_OK) return status;
+    return mode == FAULT_TERMINATE ? MODEL_TERMINATE : MODEL_OK;
+}
+
+const ModelExtension MODEL_EXTENSION = {FAULTY_FLAGS, 0, NULL, NULL, 0, NULL, evaluate,
+                                        event_update, 0.0};
+#else
 const ModelExtension MODEL_EXTENSION = {FAULTY_FLAGS, 0, NULL, NULL, 0, NULL, NULL, NULL, 0.0};
+#endif
