@@ -61,7 +61,7 @@ def host_fmus(scenario: Any, plans: list[Any], out: Path, deadline_of: dict[str,
         fmu_log: `--fmu-log`: every FMU logs to run.log.
     """
     from cosim.fmu import stepper
-    from cosim.fmu.typed import hosted_fmu
+    from cosim.fmu.in_process import in_process_host
 
     if plans:
         stepper.library()  # a first use compiles the stepping shim now, not inside a start's deadline
@@ -80,8 +80,8 @@ def host_fmus(scenario: Any, plans: list[Any], out: Path, deadline_of: dict[str,
                                             solver, getattr(spec, "interface", None))
             continue
         loaded.add(_identifier(plan))
-        hosted[plan.name] = hosted_fmu(plan.name, plan.path, plan.interface, plan.parameters,
-                                       plan.period_ticks, log_file, solver=solver)
+        hosted[plan.name] = in_process_host(plan.name, plan.path, plan.interface,
+                                            plan.parameters, plan.period_ticks, log_file, solver)
     return hosted
 
 

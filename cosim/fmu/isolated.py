@@ -285,11 +285,11 @@ def serve(rx: int, tx: int) -> int:
 def _host(config: dict[str, Any]) -> Any:
     """The in-process host of the FMU the config names (as the master would host it)."""
     from cosim.fmu.interface import describe_fmu
-    from cosim.fmu.typed import hosted_fmu
+    from cosim.fmu.in_process import in_process_host
 
     interface = describe_fmu(Path(config["path"]), config["variables"], kind=config["kind"])
-    return hosted_fmu(config["name"], config["path"], interface, config["parameters"],
-                      config["period_ticks"], config["log_file"], solver=config["solver"])
+    return in_process_host(config["name"], config["path"], interface, config["parameters"],
+                           config["period_ticks"], config["log_file"], config["solver"])
 
 
 def _loop(fmu: Any, rx: int, tx: int) -> int:

@@ -49,15 +49,8 @@ def needs_typed_io(interface: Any) -> bool:
 
 
 def hosted_fmu(name: str, path: Any, interface: Any, parameters: Mapping[str, float],
-               period_ticks: int, log_file: Any = None, use_shim: bool = True,
-               solver: Any = None) -> Any:
-    """The in-process host of an FMU: Model Exchange integrated by `solver` when one is
-    given, else co-simulation (`TypedFmuComponent` when it needs typed I/O)."""
-    if solver is not None:
-        from cosim.fmu.model_exchange import ModelExchangeComponent  # it imports this module
-
-        return ModelExchangeComponent(name, path, interface, parameters, period_ticks, solver,
-                                      log_file)
+               period_ticks: int, log_file: Any = None, use_shim: bool = True) -> FmuComponent:
+    """The co-simulation host for an FMU: `TypedFmuComponent` when it needs typed I/O."""
     kind = TypedFmuComponent if needs_typed_io(interface) else FmuComponent
     return kind(name, path, interface, parameters, period_ticks, log_file, use_shim)
 
