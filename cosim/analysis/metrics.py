@@ -161,19 +161,21 @@ def _delta_rate(run: RunData, mask: np.ndarray, report: MetricsReport) -> None:
 
 
 def _series_metrics(run: RunData, mask: np.ndarray, report: MetricsReport) -> None:
+    # each series read when its turn comes: one column in memory at a time, whatever the run's length
     series = {
-        "yc": (lateral_error_cg(run), "controller.yc (or controller.yL, controller.psiL)"),
-        "yc_cg": (run.signal("controller.yc_cg"), "controller.yc_cg"),
-        "yL": (run.signal("controller.yL"), "controller.yL"),
-        "psiL": (run.signal("controller.psiL"), "controller.psiL"),
-        "ex": (speed_error(run), "controller.ex (or vehicle.vx and a speed reference)"),
-        "delta": (run.signal("controller.delta"), "controller.delta"),
-        "ay": (run.signal("vehicle.ay"), "vehicle.ay"),
+        "yc": (lambda: lateral_error_cg(run), "controller.yc (or controller.yL, controller.psiL)"),
+        "yc_cg": (lambda: run.signal("controller.yc_cg"), "controller.yc_cg"),
+        "yL": (lambda: run.signal("controller.yL"), "controller.yL"),
+        "psiL": (lambda: run.signal("controller.psiL"), "controller.psiL"),
+        "ex": (lambda: speed_error(run), "controller.ex (or vehicle.vx and a speed reference)"),
+        "delta": (lambda: run.signal("controller.delta"), "controller.delta"),
+        "ay": (lambda: run.signal("vehicle.ay"), "vehicle.ay"),
     }
     with_rms = {"yc", "yc_cg", "yL", "psiL", "ex"}
     t = run.time[mask]
-    for key, (values, source) in series.items():
+    for key, (read, source) in series.items():
         names = ([f"rms_{key}"] if key in with_rms else []) + [f"max_abs_{key}"]
+        values = read()
         if values is None:
             report.notes.append(f"{', '.join(names)}: {source} not recorded")
             continue

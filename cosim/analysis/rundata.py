@@ -12,13 +12,14 @@ out what a run did not record. A file that exists but cannot be read is an
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from cosim.analysis.columns import ColumnFile, LazyColumns
 from cosim.errors import UserError
 
 
@@ -109,6 +110,28 @@ def read_csv_table(path: Path) -> tuple[list[str], np.ndarray]:
     return header, _parse_rows(path, body, len(header))
 
 
+def read_csv_columns(path: Path) -> tuple[list[str], ColumnFile | np.ndarray]:
+    """Read a recorder CSV as `read_csv_table` does, into a `ColumnFile` (beside the file)
+    when it parses in blocks, else into an array (the line-by-line path and its errors).
+
+    Args:
+        path: the CSV file.
+    Returns:
+        (column names, the columns).
+    """
+    try:
+        with open(path) as handle:
+            header = [h.strip() for h in handle.readline().rstrip("\n").split(",")]
+            rows = _complete_rows(path, len(header)) if header[0] == "time" else None
+            table = None if rows is None else ColumnFile.parse(handle, len(header), rows,
+                                                               near=path.parent)
+    except OSError as exc:
+        raise AnalysisError(f"{path}: cannot read: {exc.strerror}") from None
+    if table is not None:
+        return header, table
+    return read_csv_table(path)
+
+
 def _read_csv_streaming(path: Path) -> tuple[list[str], np.ndarray] | None:
     """`read_csv_table` without the whole text in memory (numpy reads the file itself), or None
     when the table needs the line-by-line path (a blank line, a field numpy refuses, a bad header).
@@ -153,12 +176,45 @@ def _complete_rows(path: Path, width: int, chunk: int = 1 << 20) -> int | None:
     return complete
 
 
-@dataclass
 class ArraySignal:
-    """One recorded array signal: `times` (rows,) and `values` (rows, size)."""
+    """One recorded array signal: `times` (rows,) and `values` (rows, size).
 
-    times: np.ndarray
-    values: np.ndarray
+    Read from a column file, `values` is built on first use; `column` and `row`
+    read only what they return (a figure that draws each window's first point
+    does not hold every window).
+    """
+
+    def __init__(self, times: np.ndarray, values: np.ndarray | None = None,
+                 table: ColumnFile | None = None) -> None:
+        self.times = times
+        self._values, self._table = values, table
+
+    @property
+    def values(self) -> np.ndarray:
+        """The windows, one row per recorded step."""
+        if self._values is None:
+            assert self._table is not None
+            self._values = self._table.matrix(first=1)
+        return self._values
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """The shape of `values`, without reading them."""
+        if self._values is None and self._table is not None:
+            return (self._table.rows, self._table.width - 1)
+        return self.values.shape
+
+    def column(self, j: int) -> np.ndarray:
+        """Point `j` of every window (a column of `values`)."""
+        if self._values is None and self._table is not None:
+            return self._table.column(j + 1)
+        return self.values[:, j]
+
+    def row(self, i: int) -> np.ndarray:
+        """Window `i` (negative counts from the end; a row of `values`)."""
+        if self._values is None and self._table is not None:
+            return self._table.row(i)[1:]
+        return self.values[i]
 
 
 @dataclass
@@ -175,7 +231,7 @@ class RunData:
 
     run_dir: Path
     time: np.ndarray
-    columns: dict[str, np.ndarray]
+    columns: Mapping[str, np.ndarray]
     manifest: dict[str, Any]
     label_override: str | None = None
     _arrays: dict[str, ArraySignal | None] = field(default_factory=dict)
@@ -200,8 +256,11 @@ class RunData:
         if name not in self._arrays:
             path = self.run_dir / "arrays" / f"{name}.csv"
             if path.is_file():
-                header, data = read_csv_table(path)
-                self._arrays[name] = ArraySignal(data[:, 0], data[:, 1:])
+                header, table = read_csv_columns(path)
+                if isinstance(table, ColumnFile):
+                    self._arrays[name] = ArraySignal(table.column(0), table=table)
+                else:
+                    self._arrays[name] = ArraySignal(table[:, 0], table[:, 1:])
             else:
                 self._arrays[name] = None
         return self._arrays[name]
@@ -302,9 +361,12 @@ def load_run(run_dir: str | Path) -> RunData:
     path = run_dir / "signals.csv"
     if not path.is_file():
         raise AnalysisError(f"{run_dir}: not a run folder (signals.csv is missing)")
-    header, data = read_csv_table(path)
-    columns = {name: data[:, i] for i, name in enumerate(header) if i > 0}
-    return RunData(run_dir, data[:, 0], columns, read_json_object(run_dir / "manifest.json"))
+    header, table = read_csv_columns(path)
+    if isinstance(table, ColumnFile):
+        return RunData(run_dir, table.column(0), LazyColumns(header, table, skip=1),
+                       read_json_object(run_dir / "manifest.json"))
+    columns = {name: table[:, i] for i, name in enumerate(header) if i > 0}
+    return RunData(run_dir, table[:, 0], columns, read_json_object(run_dir / "manifest.json"))
 
 
 def loaded_run(run_dir: str | Path, run: RunData | None) -> RunData:

@@ -111,7 +111,7 @@ def _windows(ax: Axes, run: RunData, prefix: str, style: dict, label: str, count
     xs, ys = found
     rows = np.unique(np.linspace(0, len(xs.times) - 1, count).round().astype(int))
     for k, row in enumerate(rows):
-        ax.plot(xs.values[row], ys.values[row], lw=0.8, alpha=0.6,
+        ax.plot(xs.row(row), ys.row(row), lw=0.8, alpha=0.6,
                 label=label if k == 0 else None, **style)
 
 
