@@ -37,7 +37,7 @@ from cosim.transport.zenoh.wire import (HEADER, CodecError, Kind, decode_json,  
 __all__ = ["HEADER", "CodecError", "Kind", "Layout", "decode_json", "encode_json",
            "header_tick", "ports_from_json", "ports_to_json", "value_problem"]
 
-_SENT, _HELD = 1, 0
+_SENT = 1  # the mask byte of an array in the message (0: held)
 
 
 class Layout:
