@@ -102,28 +102,29 @@ class Layout:
         if finite and not all(map(math.isfinite, floats)):
             raise CodecError(self.problem(values))
         mask = bytearray(self._mask_size)
-        parts = [HEADER.pack(kind, seq, tick, t), mask, scalars]
-        for index, value in enumerate(arrays):
-            data = self._changed(index, value, finite, values)
-            if data is not None:
+        sent = [self._changed(index, value, values) for index, value in enumerate(arrays)]
+        for index, data in enumerate(sent):
+            if data:
                 mask[index] = _SENT
-                parts.append(data)
-        return b"".join(parts)
+        body = b"".join(filter(None, sent))
+        if finite and body and not np.isfinite(np.frombuffer(body)).all():  # one test for all
+            raise CodecError(self.problem(values))
+        return b"".join([HEADER.pack(kind, seq, tick, t), mask, scalars, body])
 
-    def _changed(self, index: int, value: Any, finite: bool, values: Mapping[str, Value]) -> bytes | None:
+    def _changed(self, index: int, value: Any, values: Mapping[str, Value]) -> bytes | None:
         """The bytes of array port `index` if they differ from those last sent, else None."""
         last = self._sent[index]
-        if last is not None and value is last[0] and _frozen(value):
+        frozen = _frozen(value)
+        if frozen and last is not None and value is last[0]:
             return None  # the same read-only array as last time: the same bytes
-        size = self._arrays[index][1]
         try:
             array = np.asarray(value, dtype="<f8")
         except (TypeError, ValueError):
             array = None
-        if array is None or array.shape != (size,) or (finite and not np.isfinite(array).all()):
+        if array is None or array.shape != (self._arrays[index][1],):
             raise CodecError(self.problem(values) or "not packable")
         data = array.tobytes()
-        self._sent[index] = (value if _frozen(value) else None, data)
+        self._sent[index] = (value if frozen else None, data)
         if last is not None and data == last[1]:
             return None
         return data
