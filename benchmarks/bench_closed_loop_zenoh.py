@@ -14,7 +14,11 @@ alternating repetitions of four cases measured in the same run:
   and an echo process (benchmarks/bench_zenoh.py's pair), median of a block.
 
 Wall-clock time per tick (the Zenoh tick waits on other processes), minimum
-and median over the repeats. The target (DESIGN.md): Zenoh tick <= 1.25 x
+and median over the repeats; then the CPU time per tick of the in-process loop
+and of the Zenoh loop's processes together (master and components, every
+thread: Zenoh's own included), and of the raw round trip's two processes,
+with the same ratio on CPU time: a loaded machine disturbs CPU time much less
+than the wall clock (10 ms clock ticks: use runs of seconds). The target (DESIGN.md): Zenoh tick <= 1.25 x
 (in-process tick + one raw round trip); the planner's exchange every 10th tick
 makes the real floor 1.1 round trips per tick, printed too. Both transports
 must end in the same signal store, bit for bit (checked: `CHECK FAILED`, exit 1).
@@ -32,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -48,7 +53,10 @@ from benchmarks.common import emit_results, load_average, min_and_median, table_
 SCENARIO = ROOT / "scenarios" / "satory_nominal.yaml"
 TARGET = 1.25
 RAW_BLOCK = 2000
-CASES = ("inproc loop", "zenoh loop", "cosim run zenoh", "raw round trip")
+CPU_INPROC, CPU_ZENOH = "inproc loop, CPU", "zenoh loop, CPU of all processes"
+CPU_RAW = "raw round trip, CPU of both processes"
+CASES = ("inproc loop", "zenoh loop", "cosim run zenoh", "raw round trip", CPU_INPROC, CPU_ZENOH,
+         CPU_RAW)
 
 
 def prepared_run(seconds: float):
@@ -77,33 +85,48 @@ def _master(prepared, python_hosts: dict):
                   fmu_hosting.start_time(scenario, prepared.fmus))
 
 
-def _timed_loop(master) -> tuple[float, list[float]]:
-    """Seconds per tick of the master's whole run (wall clock), and its final signal store."""
+def _cpu_seconds(pids: list[int]) -> float:
+    """CPU seconds (user + system, every thread) used so far by the processes `pids` (Linux)."""
+    total = 0.0
+    for pid in pids:
+        with open(f"/proc/{pid}/stat") as stat:
+            fields = stat.read().rsplit(")", 1)[1].split()
+        total += int(fields[11]) + int(fields[12])  # utime, stime in clock ticks
+    return total / os.sysconf("SC_CLK_TCK")
+
+
+def _timed_loop(master, pids: list[int]) -> tuple[float, float, list[float]]:
+    """Wall-clock and CPU seconds per tick of the master's whole run (the CPU of `pids`: this
+    process and the component processes), and its final signal store."""
     try:
         master.initialize()
-        start = time.perf_counter()
+        cpu, start = _cpu_seconds(pids), time.perf_counter()
         for k in range(1, master.total_ticks + 1):
             master.step_tick(k)
-        elapsed = time.perf_counter() - start
-        return elapsed / master.total_ticks, list(master.values)
+        elapsed, cpu = time.perf_counter() - start, _cpu_seconds(pids) - cpu
+        return elapsed / master.total_ticks, cpu / master.total_ticks, list(master.values)
     finally:
         master.stop_all()
 
 
-def inproc_loop(prepared) -> tuple[float, list[float]]:
-    """One in-process run: (seconds per tick, final store)."""
+def inproc_loop(prepared) -> tuple[float, float, list[float]]:
+    """One in-process run: (wall seconds per tick, CPU seconds per tick, final store)."""
     from cosim.transport.inproc import InprocComponent
 
-    return _timed_loop(_master(prepared, {l.name: InprocComponent(l) for l in prepared.launches}))
+    return _timed_loop(_master(prepared, {l.name: InprocComponent(l) for l in prepared.launches}),
+                       [os.getpid()])
 
 
-def zenoh_loop(prepared, hosts_class=None, endpoint: str | None = None) -> tuple[float, list[float]]:
-    """One run with the Python components in their own processes: (seconds per tick, final store)."""
+def zenoh_loop(prepared, hosts_class=None,
+               endpoint: str | None = None) -> tuple[float, float, list[float]]:
+    """One run with the Python components in their own processes: (wall seconds per tick,
+    CPU seconds per tick of the master and the component processes, final store)."""
     from cosim.transport.zenoh import ZenohComponents
 
     cls = hosts_class or ZenohComponents
     with cls(prepared.launches, run_id=f"bench{uuid.uuid4().hex[:8]}", endpoint=endpoint) as remote:
-        return _timed_loop(_master(prepared, remote.components))
+        pids = [os.getpid(), *remote.pids.values()]
+        return _timed_loop(_master(prepared, remote.components), pids)
 
 
 def cosim_run_zenoh(prepared) -> float:
@@ -128,17 +151,22 @@ def measure(seconds: float, repeats: int, hosts_class=None, endpoint_host: str =
     with RawPair(endpoint_host, echo_wrap) as pair:
         pair.measure(200)  # warm-up
         for _ in range(repeats):
-            tick, inproc_store = inproc_loop(prepared)
+            tick, cpu, inproc_store = inproc_loop(prepared)
             samples["inproc loop"].append(tick)
+            samples[CPU_INPROC].append(cpu)
             endpoint = None if hosts_class is None else config.free_tcp_endpoint(endpoint_host)
-            tick, zenoh_store = zenoh_loop(prepared, hosts_class, endpoint)
+            tick, cpu, zenoh_store = zenoh_loop(prepared, hosts_class, endpoint)
             samples["zenoh loop"].append(tick)
+            samples[CPU_ZENOH].append(cpu)
             if zenoh_store != inproc_store:
                 differ = sum(a != b for a, b in zip(zenoh_store, inproc_store))
                 raise SystemExit(f"CHECK FAILED: zenoh and inproc signal stores differ ({differ} values)")
             if full_run:
                 samples["cosim run zenoh"].append(cosim_run_zenoh(prepared))
+            pids = [os.getpid(), pair.child.pid]
+            cpu = _cpu_seconds(pids)
             samples["raw round trip"].append(float(np.median(pair.measure(RAW_BLOCK))))
+            samples[CPU_RAW].append((_cpu_seconds(pids) - cpu) / RAW_BLOCK)
     return samples
 
 
@@ -160,6 +188,11 @@ def summarize(samples: dict[str, list[float]], where: str) -> dict[str, float]:
                 print(f"{where}, {stat}s: {case} / (inproc tick + 1 round trip = {floor:.1f} us) = "
                       f"{ratio:.2f}  (target <= {TARGET}: {'met' if ratio <= TARGET else 'not met'}); "
                       f"against 1.1 round trips ({floor_11:.1f} us): {figures[f'{case} {stat}'] / floor_11:.2f}")
+    if CPU_RAW in samples:
+        floor = figures[f"{CPU_INPROC} median"] + figures[f"{CPU_RAW} median"]
+        ratio = figures["ratio cpu median"] = figures[f"{CPU_ZENOH} median"] / floor
+        print(f"{where}, CPU medians: zenoh loop / (inproc tick + 1 round trip = {floor:.1f} us) = "
+              f"{ratio:.2f}")
     return figures
 
 

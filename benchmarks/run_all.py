@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from benchmarks import run_all_rows  # noqa: E402
-from benchmarks.common import RESULT_PREFIX, speed_anchor  # noqa: E402
+from benchmarks.common import RESULT_PREFIX, load_average, speed_anchor  # noqa: E402
 
 BEGIN = "<!-- perf-table:begin -->"
 END = "<!-- perf-table:end -->"
@@ -72,7 +72,7 @@ BENCHMARKS = (
               ("--duration", "20", "--repeats", "3"), run_all_rows.foxglove),
     Benchmark("bench_sweep", ("--samples", "6", "--seconds", "10", "--repeats", "2"),
               ("--samples", "12", "--seconds", "30", "--repeats", "3")),
-    Benchmark("bench_memory", ("--durations", "27.5", "275", "--no-figures"),
+    Benchmark("bench_memory", ("--durations", "27.5", "275"),
               ("--durations", "275", "2750")),
 )
 
@@ -179,7 +179,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"unknown benchmark(s) {sorted(set(args.only) - known)}; choose from {sorted(known)}")
     machine = (f"{machine_line()}, speed anchor {speed_anchor():.1f} ns per iteration of a fixed "
                "pure-Python loop (`benchmarks.common.speed_anchor`, before the benchmarks)")
-    outcomes = []
+    outcomes, started, load_at_start = [], time.perf_counter(), load_average()
+    print(f"load average (1 / 5 / 15 min) at the start: {load_at_start}", file=sys.stderr, flush=True)
     for bench in BENCHMARKS:
         if args.only and bench.name not in args.only:
             continue
@@ -188,7 +189,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"  {outcomes[-1].seconds:.0f} s{', ' + outcomes[-1].problem if outcomes[-1].problem else ''}",
               file=sys.stderr, flush=True)
     when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    block = readme_block(outcomes, when, args.full, machine)
+    overall = (f"load average (1 / 5 / 15 min) {load_at_start} at the start, {load_average()} at the "
+               f"end; {(time.perf_counter() - started) / 60:.1f} min in all")
+    print(overall, file=sys.stderr, flush=True)
+    block = readme_block(outcomes, when, args.full, f"{machine}; {overall}")
     print(block)
     if not args.no_readme and not args.only:
         args.readme.write_text(replace_block(args.readme.read_text(encoding="utf-8"), block), encoding="utf-8")

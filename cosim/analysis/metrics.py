@@ -166,19 +166,21 @@ def _delta_rate(run: RunData, mask: np.ndarray, report: MetricsReport) -> None:
 
 def _series_metrics(run: RunData, mask: np.ndarray, report: MetricsReport) -> None:
     ctl, veh = (functools.partial(run.role_column, role) for role in ("controller", "vehicle"))
+    # each series read when its turn comes: one column in memory at a time, whatever the run's length
     series = {
-        "yc": (lateral_error_cg(run), f"{ctl('yc')} (or {ctl('yL')}, {ctl('psiL')})"),
-        "yc_cg": (run.role_signal("controller", "yc_cg"), ctl("yc_cg")),
-        "yL": (run.role_signal("controller", "yL"), ctl("yL")),
-        "psiL": (run.role_signal("controller", "psiL"), ctl("psiL")),
-        "ex": (speed_error(run), f"{ctl('ex')} (or {veh('vx')} and a speed reference)"),
-        "delta": (run.role_signal("controller", "delta"), ctl("delta")),
-        "ay": (run.role_signal("vehicle", "ay"), veh("ay")),
+        "yc": (lambda: lateral_error_cg(run), f"{ctl('yc')} (or {ctl('yL')}, {ctl('psiL')})"),
+        "yc_cg": (lambda: run.role_signal("controller", "yc_cg"), ctl("yc_cg")),
+        "yL": (lambda: run.role_signal("controller", "yL"), ctl("yL")),
+        "psiL": (lambda: run.role_signal("controller", "psiL"), ctl("psiL")),
+        "ex": (lambda: speed_error(run), f"{ctl('ex')} (or {veh('vx')} and a speed reference)"),
+        "delta": (lambda: run.role_signal("controller", "delta"), ctl("delta")),
+        "ay": (lambda: run.role_signal("vehicle", "ay"), veh("ay")),
     }
     with_rms = {"yc", "yc_cg", "yL", "psiL", "ex"}
     t = run.time[mask]
-    for key, (values, source) in series.items():
+    for key, (read, source) in series.items():
         names = ([f"rms_{key}"] if key in with_rms else []) + [f"max_abs_{key}"]
+        values = read()
         if values is None:
             report.notes.append(f"{', '.join(names)}: {source} not recorded")
             continue

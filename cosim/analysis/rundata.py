@@ -16,13 +16,14 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from cosim.analysis.columns import ColumnFile, LazyColumns
 from cosim.errors import UserError
 from cosim.scenario.roles import resolve_roles
 
@@ -114,6 +115,28 @@ def read_csv_table(path: Path) -> tuple[list[str], np.ndarray]:
     return header, _parse_rows(path, body, len(header))
 
 
+def read_csv_columns(path: Path) -> tuple[list[str], ColumnFile | np.ndarray]:
+    """Read a recorder CSV as `read_csv_table` does, into a `ColumnFile` (beside the file)
+    when it parses in blocks, else into an array (the line-by-line path and its errors).
+
+    Args:
+        path: the CSV file.
+    Returns:
+        (column names, the columns).
+    """
+    try:
+        with open(path) as handle:
+            header = [h.strip() for h in handle.readline().rstrip("\n").split(",")]
+            rows = _complete_rows(path, len(header)) if header[0] == "time" else None
+            table = None if rows is None else ColumnFile.parse(handle, len(header), rows,
+                                                               near=path.parent)
+    except OSError as exc:
+        raise AnalysisError(f"{path}: cannot read: {exc.strerror}") from None
+    if table is not None:
+        return header, table
+    return read_csv_table(path)
+
+
 def _read_csv_streaming(path: Path) -> tuple[list[str], np.ndarray] | None:
     """`read_csv_table` without the whole text in memory (numpy reads the file itself), or None
     when the table needs the line-by-line path (a blank line, a field numpy refuses, a bad header).
@@ -158,12 +181,45 @@ def _complete_rows(path: Path, width: int, chunk: int = 1 << 20) -> int | None:
     return complete
 
 
-@dataclass
 class ArraySignal:
-    """One recorded array signal: `times` (rows,) and `values` (rows, size)."""
+    """One recorded array signal: `times` (rows,) and `values` (rows, size).
 
-    times: np.ndarray
-    values: np.ndarray
+    Read from a column file, `values` is built on first use; `column` and `row`
+    read only what they return (a figure that draws each window's first point
+    does not hold every window).
+    """
+
+    def __init__(self, times: np.ndarray, values: np.ndarray | None = None,
+                 table: ColumnFile | None = None) -> None:
+        self.times = times
+        self._values, self._table = values, table
+
+    @property
+    def values(self) -> np.ndarray:
+        """The windows, one row per recorded step."""
+        if self._values is None:
+            assert self._table is not None
+            self._values = self._table.matrix(first=1)
+        return self._values
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """The shape of `values`, without reading them."""
+        if self._values is None and self._table is not None:
+            return (self._table.rows, self._table.width - 1)
+        return self.values.shape
+
+    def column(self, j: int) -> np.ndarray:
+        """Point `j` of every window (a column of `values`)."""
+        if self._values is None and self._table is not None:
+            return self._table.column(j + 1)
+        return self.values[:, j]
+
+    def row(self, i: int) -> np.ndarray:
+        """Window `i` (negative counts from the end; a row of `values`)."""
+        if self._values is None and self._table is not None:
+            return self._table.row(i)[1:]
+        return self.values[i]
 
 
 @dataclass
@@ -182,7 +238,7 @@ class RunData:
 
     run_dir: Path
     time: np.ndarray
-    columns: dict[str, np.ndarray]
+    columns: Mapping[str, np.ndarray]
     manifest: dict[str, Any]
     label_override: str | None = None
     every: int = 1
@@ -248,8 +304,11 @@ class RunData:
         if name not in self._arrays:
             path = self.run_dir / "arrays" / f"{name}.csv"
             if path.is_file():
-                header, data = read_table(path)
-                self._arrays[name] = ArraySignal(data[:, 0], data[:, 1:])
+                header, table = read_table(path)
+                if isinstance(table, ColumnFile):
+                    self._arrays[name] = ArraySignal(table.column(0), table=table)
+                else:
+                    self._arrays[name] = ArraySignal(table[:, 0], table[:, 1:])
             else:
                 self._arrays[name] = None
         return self._arrays[name]
@@ -350,18 +409,21 @@ def load_run(run_dir: str | Path) -> RunData:
     path = run_dir / "signals.csv"
     if not path.is_file():
         raise AnalysisError(f"{run_dir}: not a run folder (signals.csv is missing)")
-    header, data = read_table(path)
-    columns = {name: data[:, i] for i, name in enumerate(header) if i > 0}
+    header, table = read_table(path)
     manifest = read_json_object(run_dir / "manifest.json")
     recording = manifest.get("recording")
     every = recording.get("every", 1) if isinstance(recording, dict) else 1
-    return RunData(run_dir, data[:, 0], columns, manifest,
-                   every=every if isinstance(every, int) and every >= 1 else 1)
+    every = every if isinstance(every, int) and every >= 1 else 1
+    if isinstance(table, ColumnFile):
+        return RunData(run_dir, table.column(0), LazyColumns(header, table, skip=1), manifest,
+                       every=every)
+    columns = {name: table[:, i] for i, name in enumerate(header) if i > 0}
+    return RunData(run_dir, table[:, 0], columns, manifest, every=every)
 
 
-def read_table(csv_path: Path) -> tuple[list[str], np.ndarray]:
+def read_table(csv_path: Path) -> tuple[list[str], ColumnFile | np.ndarray]:
     """A recorder table: from its Parquet twin when there is one and pyarrow reads it
-    (several times faster, the same float64 values), else from the CSV."""
+    (several times faster, the same float64 values), else from the CSV (`read_csv_columns`)."""
     parquet = csv_path.with_suffix(".parquet")
     if parquet.is_file():
         try:
@@ -372,7 +434,7 @@ def read_table(csv_path: Path) -> tuple[list[str], np.ndarray]:
             pass  # no pyarrow here: the CSV holds the same values
         except Exception as exc:  # a damaged file: say which, as for the CSV
             raise AnalysisError(f"{parquet}: cannot read: {exc}") from None
-    return read_csv_table(csv_path)
+    return read_csv_columns(csv_path)
 
 
 def with_every_tick(run: RunData, full_signals: tuple[list[str], np.ndarray] | None) -> RunData:

@@ -180,9 +180,51 @@ def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: 
             if isinstance(v, (int, float)) and not isinstance(v, bool)}
 
 
+def sample_problem(scenario_path: Path, overrides: Sequence[str],
+                   roots: Sequence[str] = ()) -> str:
+    """Why one sample is invalid (`cosim validate`'s message, one line), or "" if it is valid.
+
+    Args:
+        scenario_path: the scenario YAML.
+        overrides: the sample's "PATH=VALUE" overrides (fixed ones first).
+        roots: folders to put in front of the import path first (on a Dask worker).
+    """
+    from cosim.errors import UserError
+    from cosim.execution.validate import validate_scenario
+    from cosim.scenario.imports import add_import_roots
+    from cosim.scenario.loader import load_scenario
+
+    if roots:
+        add_import_roots(tuple(roots))
+    try:
+        validate_scenario(load_scenario(scenario_path, list(overrides)))
+    except UserError as exc:
+        return str(exc).replace("\n", "; ")
+    return ""
+
+
+def refuse_invalid(scenario_path: Path, samples: Sequence[Sequence[str]],
+                   problems: Sequence[str], shown: int = 5) -> None:
+    """Raise a UserError listing the invalid samples (index, overrides, problem), one a line.
+
+    Args:
+        scenario_path: the scenario YAML.
+        samples: each sample's overrides; problems: each one's `sample_problem`.
+        shown: how many invalid samples the message lists.
+    """
+    from cosim.errors import UserError
+
+    bad = [f"sample {index} ({' '.join(overrides)}): {problem}"
+           for index, (overrides, problem) in enumerate(zip(samples, problems)) if problem]
+    if bad:
+        more = f"\n... and {len(bad) - shown} more" if len(bad) > shown else ""
+        raise UserError(f"{scenario_path}: sweep refused before its first run: {len(bad)} "
+                        f"of {len(samples)} samples are invalid:\n" + "\n".join(bad[:shown]) + more)
+
+
 def check_samples(scenario_path: Path, samples: Sequence[Sequence[str]],
                   shown: int = 5) -> None:
-    """Validate the scenario with every sample's overrides, as `cosim validate` does.
+    """Validate the scenario with every sample's overrides here, as `cosim validate` does.
 
     Args:
         scenario_path: the scenario YAML.
@@ -191,21 +233,24 @@ def check_samples(scenario_path: Path, samples: Sequence[Sequence[str]],
     Raises:
         UserError listing the invalid samples (index, overrides, problem), one a line.
     """
-    from cosim.errors import UserError
-    from cosim.execution.validate import validate_scenario
-    from cosim.scenario.loader import load_scenario
+    refuse_invalid(scenario_path, samples, [sample_problem(scenario_path, o) for o in samples], shown)
 
-    bad: list[str] = []
-    for index, overrides in enumerate(samples):
-        try:
-            validate_scenario(load_scenario(scenario_path, list(overrides)))
-        except UserError as exc:
-            bad.append(f"sample {index} ({' '.join(overrides)}): "
-                       + str(exc).replace("\n", "; "))
-    if bad:
-        more = f"\n... and {len(bad) - shown} more" if len(bad) > shown else ""
-        raise UserError(f"{scenario_path}: sweep refused before its first run: {len(bad)} "
-                        f"of {len(samples)} samples are invalid:\n" + "\n".join(bad[:shown]) + more)
+
+def _sample_check(scenario_path: Path, samples: list[list[str]],
+                  roots: tuple[str, ...]) -> Callable[[Callable], None]:
+    """The validation of a sweep's samples, as `execute_samples`' `check`: the first sample
+    here and now (a broken scenario is refused at once, every sample listed, before a cluster
+    starts), the others on the cluster's workers, in parallel (each costs a scenario load
+    and a `prepare_run`: serial in the client, that was a fixed cost the workers could not share)."""
+    first = [sample_problem(scenario_path, samples[0])] if samples else []
+    if any(first):
+        check_samples(scenario_path, samples)  # raises, naming every invalid sample
+
+    def check(cluster_map: Callable) -> None:
+        rest = cluster_map(partial(sample_problem, scenario_path, roots=roots), samples[1:])
+        refuse_invalid(scenario_path, samples, first + list(rest))
+
+    return check
 
 
 def _run_task(run_fn: RunFunction, scenario_path: Path, transport: str, roots: tuple[str, ...],
@@ -242,14 +287,19 @@ def _client(scheduler: str | None, workers: int, cluster_options: dict[str, Any]
 
 def execute_samples(task: Callable[..., tuple[str, dict[str, float], str]],
                     jobs: Sequence[tuple[int, list[str], Path]], scheduler: str | None,
-                    cluster_options: dict[str, Any] | None) -> list[tuple[str, dict, str]]:
+                    cluster_options: dict[str, Any] | None,
+                    check: Callable[[Callable], None] | None = None) -> list[tuple[str, dict, str]]:
     """Run the jobs (index, overrides, run_dir) as Dask tasks; results in job order.
 
     A task lost with its worker (KilledWorker and the like) becomes a failed sample.
+    `check`, if given, is called first with a `map(function, items)` that runs on the
+    cluster's workers (the samples' validation, in parallel); it raises to refuse the jobs.
     """
     workers = max(1, min(len(jobs), os.cpu_count() or 1))
     client, cluster = _client(scheduler, workers, cluster_options)
     try:
+        if check is not None:
+            check(lambda function, items: client.gather(client.map(function, items, pure=False)))
         futures = client.map(task, *zip(*jobs), pure=False)
         results = []
         for (index, _, _), future in zip(jobs, futures):
@@ -354,11 +404,12 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
     (out / "samples").mkdir(parents=True, exist_ok=True)
     jobs = [(i, list(sets) + [format_override(v.path, x) for v, x in zip(parsed, row)],
              (out / "samples" / f"sample_{i:04d}").resolve()) for i, row in enumerate(points)]
+    roots = import_roots(scenario_path)
+    check = None
     if run_fn is None:  # real runs: refuse a bad scenario or sample before the first one
-        check_samples(scenario_path, [overrides for _, overrides, _ in jobs])
-    task = partial(_run_task, run_fn or run_scenario_sample, scenario_path, transport,
-                   import_roots(scenario_path))
-    outcomes = execute_samples(task, jobs, scheduler, cluster_options)
+        check = _sample_check(scenario_path, [overrides for _, overrides, _ in jobs], roots)
+    task = partial(_run_task, run_fn or run_scenario_sample, scenario_path, transport, roots)
+    outcomes = execute_samples(task, jobs, scheduler, cluster_options, check)
     results = [SampleResult(i, [float(x) for x in row], status, metrics, error)
                for (i, row), (status, metrics, error) in zip(enumerate(points), outcomes)]
     result = SweepResult(parsed, results, summarize_samples(results), out, [])

@@ -49,6 +49,7 @@ from PIL import Image
 
 from cosim.figures import fidelity_panels as fp
 from cosim.figures import panels as pan
+from cosim.figures.thin import DPI
 from cosim.figures.following import following_figure
 from cosim.figures import signals as sig
 from cosim.figures.signal_plot import default_signals, select_signals, signals_figure
@@ -58,7 +59,6 @@ from cosim.analysis.rundata import AnalysisError, RunData, loaded_run
 LAYOUTS = ("track", "manoeuvre", "speed", "following", "signals")
 MANOEUVRE_WORDS = ("lane", "obstacle", "iso3888", "manoeuvre", "maneuver")
 TRACK_WORDS = ("satory", "track", "friction")
-DPI = 110
 PNG_COMPRESS_LEVEL = 1   # zlib level: same pixels, ~15 % larger file, encodes about twice as fast
 
 

@@ -17,6 +17,7 @@ from cosim.figures import signals as sig
 from cosim.figures import zoom
 from cosim.figures.envelope import envelope
 from cosim.figures.road import draw_road
+from cosim.figures.thin import DPI, PIXEL_FRACTION, pixel_size, thin_path
 from cosim.analysis.metrics import run_cone_hits
 from cosim.analysis.rundata import RunData
 
@@ -111,7 +112,7 @@ def _windows(ax: Axes, run: RunData, prefix: str, style: dict, label: str, count
     xs, ys = found
     rows = np.unique(np.linspace(0, len(xs.times) - 1, count).round().astype(int))
     for k, row in enumerate(rows):
-        ax.plot(xs.values[row], ys.values[row], lw=0.8, alpha=0.6,
+        ax.plot(xs.row(row), ys.row(row), lw=0.8, alpha=0.6,
                 label=label if k == 0 else None, **style)
 
 
@@ -150,7 +151,9 @@ def trajectory_map(ax: Axes, runs: Sequence[RunData], both_windows: bool = False
                      _label(runs, i, "alternative"), 6)
         xy = zoom.vehicle_xy(run)
         if xy is not None:
-            ax.plot(xy[0], xy[1], color=color(i), lw=1.2, label=_label(runs, i, "vehicle"))
+            spacing = PIXEL_FRACTION * pixel_size(ax, xy[0], xy[1], DPI)
+            xs, ys = thin_path(xy[0], xy[1], spacing)
+            ax.plot(xs, ys, color=color(i), lw=1.2, label=_label(runs, i, "vehicle"))
             drawn = True
     _cones(ax, runs[0])
     if not drawn:

@@ -47,7 +47,7 @@ def curvature(run: RunData) -> Series | None:
     if found is not None:
         return found
     kappa = run.array(run.role_column("planner", "ref_kappa"))
-    return None if kappa is None else (kappa.times, kappa.values[:, 0])
+    return None if kappa is None else (kappa.times, kappa.column(0))
 
 
 def speed_reference(run: RunData) -> Series | None:
@@ -76,7 +76,7 @@ def friction(run: RunData) -> tuple[Series, str]:
 def window(run: RunData, prefix: str) -> tuple[ArraySignal, ArraySignal] | None:
     """The planner's recorded windows `<prefix>_x` and `<prefix>_y`, or None."""
     xs, ys = (run.array(run.role_column("planner", f"{prefix}_{axis}")) for axis in ("x", "y"))
-    if xs is None or ys is None or xs.values.shape != ys.values.shape:
+    if xs is None or ys is None or xs.shape != ys.shape:
         return None
     return xs, ys
 
@@ -87,8 +87,8 @@ def path_trace(run: RunData, prefix: str) -> Series | None:
     if found is None:
         return None
     xs, ys = found
-    return (np.concatenate([xs.values[:-1, 0], xs.values[-1]]),
-            np.concatenate([ys.values[:-1, 0], ys.values[-1]]))
+    return (np.concatenate([xs.column(0)[:-1], xs.row(-1)]),
+            np.concatenate([ys.column(0)[:-1], ys.row(-1)]))
 
 
 def vehicle_mass(run: RunData) -> float:

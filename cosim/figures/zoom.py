@@ -69,7 +69,7 @@ def planned_window_at(run: RunData, t: float) -> sig.Series | None:
         return None
     xs, ys = found
     row = max(int(np.searchsorted(xs.times, t, side="right")) - 1, 0)
-    return xs.values[row], ys.values[row]
+    return xs.row(row), ys.row(row)
 
 
 def _near(x: np.ndarray, y: np.ndarray, cx: float, cy: float, half: float) -> sig.Series:

@@ -218,3 +218,58 @@ def test_sweep_summary_prints_failures_verbatim(tmp_path, capsys):
     out = capsys.readouterr().out
     assert f"failed: {error}\n" in out
     assert "sweep: 2 samples, 1 failed" in out
+
+
+@pytest.mark.integration
+@pytest.mark.skipif(not SCENARIO.is_file(), reason="scenarios/satory_nominal.yaml not present")
+def test_samples_in_one_worker_give_the_runs_of_each_sample_alone(tmp_path):
+    """Samples that follow each other in one worker (classes imported once, FMU cache and
+    modules reused) give each sample's own run, signals and metrics bit for bit."""
+    from cosim.execution.finish import analyse_run_folder
+    from cosim.execution.run import run_scenario
+    from cosim.scenario.loader import load_scenario
+
+    vary = "components.controller.parameters.ke=3.0:5.0"
+    result = run_sweep(SCENARIO, [vary], samples=3, seed=4, out_dir=tmp_path / "out",
+                       sets=["duration=2"], cluster_options={"processes": False, "n_workers": 1})
+    assert [s.status for s in result.samples] == ["ok"] * 3, result.failures
+    for sample in result.samples:
+        overrides = ["duration=2", f"components.controller.parameters.ke={sample.values[0]!r}"]
+        alone = tmp_path / f"alone_{sample.index}"
+        outcome = run_scenario(load_scenario(SCENARIO, overrides), out_dir=alone, progress=False)
+        assert outcome.status == "ok"
+        analyse_run_folder(outcome, figures=False)  # metrics.json as `cosim run` leaves it
+        swept = tmp_path / "out" / "samples" / f"sample_{sample.index:04d}"
+        assert (swept / "signals.csv").read_bytes() == (alone / "signals.csv").read_bytes()
+        alone_metrics = json.loads((alone / "metrics.json").read_text())
+        assert sample.metrics and set(sample.metrics) == set(alone_metrics)
+        for name, value in sample.metrics.items():
+            assert alone_metrics[name] == value
+
+
+def test_samples_after_the_first_are_validated_through_the_cluster_map(tmp_path):
+    from cosim.errors import UserError
+    from cosim.execution.sweep import _sample_check
+    from tests.helpers.components import GOOD
+
+    scenario = tmp_path / "gain.yaml"
+    scenario.write_text(GOOD)
+    samples = [["duration=0.5"], ["duration=0.505"], ["duration=0.3"]]
+    mapped: list[list[list[str]]] = []
+
+    def cluster_map(function, items):
+        mapped.append(list(items))
+        return list(map(function, items))
+
+    check = _sample_check(scenario, samples, ())  # the first is valid: nothing raised yet
+    with pytest.raises(UserError) as refused:
+        check(cluster_map)
+    assert mapped == [samples[1:]]
+    lines = str(refused.value).splitlines()
+    assert lines[0] == f"{scenario}: sweep refused before its first run: 1 of 3 samples are invalid:"
+    assert lines[1].startswith("sample 1 (duration=0.505): ") and len(lines) == 2
+    assert "whole number of ticks" in lines[1]
+    # a first sample that is invalid: refused at once, every sample checked here
+    with pytest.raises(UserError, match="2 of 3 samples are invalid"):
+        _sample_check(scenario, [samples[1], samples[0], ["duration=0.111"]], ())
+    _sample_check(scenario, samples[:1] + samples[2:], ())(cluster_map)  # all valid: no error

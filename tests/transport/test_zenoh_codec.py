@@ -36,18 +36,68 @@ def test_scalar_layout_round_trips_every_bit():
         assert HEADER.unpack_from(message) == (Kind.STEP, 7, 123456789012, 0.1 * 3)
 
 
-def test_array_layout_is_declared_order_flattened_and_exact():
+def test_array_layout_is_mask_scalars_then_arrays_and_exact():
     rng = np.random.default_rng(12)
-    layout = Layout(PORTS)
+    sender, receiver = Layout(PORTS), Layout(PORTS)
     flat = random_finite(rng, 7)
     values = {"d": flat[5:7], "a": flat[0], "c": flat[4], "b": flat[1:4]}  # any dict order
-    message = layout.encode(Kind.OUTPUTS, 1, -1, 0.0, values)
-    assert message[HEADER.size:] == flat.astype("<f8").tobytes()
-    decoded = layout.decode(message)
+    message = sender.encode(Kind.OUTPUTS, 1, -1, 0.0, values)
+    # one byte per array port (both sent), padded to 8; scalars a, c; arrays b, d
+    assert message[HEADER.size:HEADER.size + 8] == bytes([1, 1, 0, 0, 0, 0, 0, 0])
+    assert message[HEADER.size + 8:] == flat[[0, 4, 1, 2, 3, 5, 6]].astype("<f8").tobytes()
+    decoded = receiver.decode(message)
     assert isinstance(decoded["a"], float) and isinstance(decoded["c"], float)
     assert decoded["b"].shape == (3,) and not decoded["b"].flags.writeable
     assert np.concatenate([[decoded["a"]], decoded["b"], [decoded["c"]], decoded["d"]]).tobytes() \
         == flat.tobytes()
+
+
+def _frozen(values) -> np.ndarray:
+    array = np.array(values, dtype=np.float64)
+    array.flags.writeable = False
+    return array
+
+
+def test_an_array_with_the_same_bytes_is_held_and_the_receiver_gives_the_same_object():
+    sender, receiver = Layout(PORTS), Layout(PORTS)
+    b, d = _frozen([1.0, 2.0, 3.0]), [0.5, -0.0]
+    first = receiver.decode(sender.encode(Kind.STEP, 1, 1, 0.01, {"a": 1.0, "b": b, "c": 2.0, "d": d}))
+    # b: the same read-only object; d: a new list with the same bits: both held
+    message = sender.encode(Kind.STEP, 2, 2, 0.02, {"a": 3.0, "b": b, "c": 4.0, "d": [0.5, -0.0]})
+    assert message[HEADER.size:HEADER.size + 2] == bytes([0, 0])
+    assert len(message) == HEADER.size + 8 + 2 * 8
+    second = receiver.decode(message)
+    assert (second["a"], second["c"]) == (3.0, 4.0)
+    assert second["b"] is first["b"] and second["d"] is first["d"]
+    # 0.0 == -0.0 but their bits differ: sent again, and the receiver has the new bits
+    message = sender.encode(Kind.STEP, 3, 3, 0.03, {"a": 3.0, "b": b, "c": 4.0, "d": [0.5, 0.0]})
+    assert message[HEADER.size:HEADER.size + 2] == bytes([0, 1])
+    third = receiver.decode(message)
+    assert third["b"] is first["b"] and third["d"].tobytes() == np.array([0.5, 0.0]).tobytes()
+
+
+def test_a_writeable_array_changed_in_place_is_sent_again():
+    sender, receiver = Layout(PORTS), Layout(PORTS)
+    b = np.array([1.0, 2.0, 3.0])
+    receiver.decode(sender.encode(Kind.STEP, 1, 1, 0.0, {"a": 0.0, "b": b, "c": 0.0, "d": [0, 0]}))
+    b[1] = 7.0
+    decoded = receiver.decode(sender.encode(Kind.STEP, 2, 2, 0.0, {"a": 0.0, "b": b, "c": 0.0,
+                                                                   "d": [0, 0]}))
+    assert decoded["b"].tolist() == [1.0, 7.0, 3.0]
+
+
+def test_forget_sends_and_expects_every_array_afresh():
+    sender, receiver = Layout(PORTS), Layout(PORTS)
+    values = {"a": 0.0, "b": _frozen([1, 2, 3]), "c": 0.0, "d": _frozen([4, 5])}
+    receiver.decode(sender.encode(Kind.START, 1, -1, 0.0, values))
+    held = sender.encode(Kind.STEP, 2, 1, 0.0, values)
+    fresh_receiver = Layout(PORTS)
+    with pytest.raises(CodecError, match=r"^output 'b' held before it was ever sent$"):
+        fresh_receiver.decode(held)
+    sender.forget()
+    again = sender.encode(Kind.START, 3, -1, 0.0, values)
+    assert again[HEADER.size:HEADER.size + 2] == bytes([1, 1])
+    assert fresh_receiver.decode(again)["d"].tolist() == [4.0, 5.0]
 
 
 @pytest.mark.parametrize("values, message", [
@@ -78,9 +128,16 @@ def test_scalar_only_layout_rejects_nan_and_missing_by_name():
 
 def test_decode_rejects_a_message_of_the_wrong_size():
     layout = Layout(PORTS)
-    message = HEADER.pack(Kind.OUTPUTS, 1, 1, 0.0) + struct.pack("<3d", 1, 2, 3)
-    with pytest.raises(CodecError, match="message of 56 bytes, expected 88"):
+    mask = bytes([1, 1, 0, 0, 0, 0, 0, 0])
+    message = HEADER.pack(Kind.OUTPUTS, 1, 1, 0.0) + mask + struct.pack("<3d", 1, 2, 3)
+    with pytest.raises(CodecError, match="message of 64 bytes ends inside output 'b'"):
         layout.decode(message)
+    message = HEADER.pack(Kind.OUTPUTS, 1, 1, 0.0) + mask + struct.pack("<8d", *range(8))
+    with pytest.raises(CodecError, match="message of 104 bytes, expected 96"):
+        layout.decode(message)
+    scalars = Layout((Port("u"), Port("v")))
+    with pytest.raises(CodecError, match="message of 40 bytes, expected 48"):
+        scalars.decode(HEADER.pack(Kind.OUTPUTS, 1, 1, 0.0) + struct.pack("<d", 1))
 
 
 def test_ports_and_json_documents_round_trip():

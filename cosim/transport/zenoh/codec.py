@@ -1,11 +1,22 @@
 """Wire format of the lockstep exchange: one header, then packed float64 values.
 
 A message is a 32-byte little-endian header (kind, seq, tick as int64, then
-t as float64) followed either by the signal values of a port list, packed
-as one contiguous float64 byte string in declared port order (scalars as one
-float, arrays flattened), or by a UTF-8 JSON document for control messages.
-Float values round-trip bit for bit (raw IEEE 754 bytes, no text). The header,
-the kinds and the JSON messages live in `wire` (no numpy) and are re-exported.
+t as float64) followed either by the signal values of a port list or by a
+UTF-8 JSON document for control messages. Float values round-trip bit for bit
+(raw IEEE 754 bytes, no text). The header, the kinds and the JSON messages
+live in `wire` (no numpy) and are re-exported.
+
+A port list of scalars only is packed as one float64 per port, in declared
+order. A port list with arrays (a planner's trajectory window) is packed as
+one byte per array port (1: sent in this message, 0: held), padded to 8 bytes,
+then every scalar in declared order, then the sent arrays in declared order.
+An array is held when its bytes are those it had in the previous message of
+the same direction: the window changes once per planner step, not every tick,
+so most requests to a controller carry its scalars only, and the receiving
+`Layout` hands out the array it kept, the very same read-only object (which a
+controller can recognize without comparing bytes). Each `Layout` object is one
+end of one direction of one component's exchange; a START message sends and
+receives every array afresh (`forget`).
 """
 
 from __future__ import annotations
@@ -26,9 +37,11 @@ from cosim.transport.zenoh.wire import (HEADER, CodecError, Kind, decode_json,  
 __all__ = ["HEADER", "CodecError", "Kind", "Layout", "decode_json", "encode_json",
            "header_tick", "ports_from_json", "ports_to_json", "value_problem"]
 
+_SENT = 1  # the mask byte of an array in the message (0: held)
+
 
 class Layout:
-    """The packing of a fixed port list into float64 slots.
+    """The packing of a fixed port list into float64 slots, one end of one direction.
 
     Args:
         ports: the ports in declared order; their sizes fix the slot layout.
@@ -43,11 +56,24 @@ class Layout:
         self.scalar_only = all(p.size == 1 for p in self.ports)
         self._struct = struct.Struct(f"<qqqd{self.size}d")
         self._pick = picker(self.names)
-        self._slices: list[tuple[str, int, int]] = []
-        offset = 0
-        for port in self.ports:
-            self._slices.append((port.name, offset, port.size))
-            offset += port.size
+        scalar_names = tuple(p.name for p in self.ports if p.size == 1)
+        self._scalar_names = scalar_names
+        self._pick_scalars = picker(scalar_names)
+        self._arrays = tuple((p.name, p.size) for p in self.ports if p.size > 1)
+        self._pick_arrays = picker(tuple(name for name, _ in self._arrays))
+        self._mask_size = -(-len(self._arrays) // 8) * 8
+        self._scalars = struct.Struct(f"<{len(scalar_names)}d")
+        self._values_at = HEADER.size + self._mask_size  # where the scalars start
+        self._arrays_at = self._values_at + self._scalars.size
+        self._sent: list[tuple[Any, bytes] | None] = []  # per array port: (object, bytes)
+        self._kept: list[np.ndarray | None] = []  # per array port: the last one received
+        self.forget()
+
+    def forget(self) -> None:
+        """Start afresh: send every array in the next message and expect every one in the
+        next received (both ends of a direction call it at START)."""
+        self._sent = [None] * len(self._arrays)
+        self._kept = [None] * len(self._arrays)
 
     def encode(self, kind: int, seq: int, tick: int, t: float, values: Mapping[str, Value],
                finite: bool = False) -> bytes:
@@ -67,38 +93,69 @@ class Layout:
             if finite and not all(map(math.isfinite, floats)):
                 raise CodecError(self.problem(values))
             return message
-        buf = self.pack_array(values)
-        if finite and not np.isfinite(buf).all():
-            raise CodecError(self.problem(values))
-        return HEADER.pack(kind, seq, tick, t) + buf.tobytes()
-
-    def pack_array(self, values: Mapping[str, Value]) -> np.ndarray:
-        """The values as one float64 vector in slot order; raises CodecError on a bad port."""
-        buf = np.empty(self.size)
         try:
-            for name, offset, size in self._slices:
-                if size == 1:
-                    buf[offset] = float(values[name])
-                else:
-                    array = np.asarray(values[name], dtype=np.float64)
-                    if array.shape != (size,):
-                        raise ValueError
-                    buf[offset:offset + size] = array
-        except (KeyError, TypeError, ValueError):
+            floats = self._pick_scalars(values)
+            scalars = self._scalars.pack(*floats)
+            arrays = self._pick_arrays(values)
+        except (KeyError, TypeError, struct.error):
             raise CodecError(self.problem(values) or "not packable") from None
-        return buf
+        if finite and not all(map(math.isfinite, floats)):
+            raise CodecError(self.problem(values))
+        mask = bytearray(self._mask_size)
+        sent = [self._changed(index, value, values) for index, value in enumerate(arrays)]
+        for index, data in enumerate(sent):
+            if data:
+                mask[index] = _SENT
+        body = b"".join(filter(None, sent))
+        if finite and body and not np.isfinite(np.frombuffer(body)).all():  # one test for all
+            raise CodecError(self.problem(values))
+        return b"".join([HEADER.pack(kind, seq, tick, t), mask, scalars, body])
+
+    def _changed(self, index: int, value: Any, values: Mapping[str, Value]) -> bytes | None:
+        """The bytes of array port `index` if they differ from those last sent, else None."""
+        last = self._sent[index]
+        frozen = _frozen(value)
+        if frozen and last is not None and value is last[0]:
+            return None  # the same read-only array as last time: the same bytes
+        try:
+            array = np.asarray(value, dtype="<f8")
+        except (TypeError, ValueError):
+            array = None
+        if array is None or array.shape != (self._arrays[index][1],):
+            raise CodecError(self.problem(values) or "not packable")
+        data = array.tobytes()
+        self._sent[index] = (value if frozen else None, data)
+        if last is not None and data == last[1]:
+            return None
+        return data
 
     def decode(self, data: bytes) -> dict[str, Value]:
         """The port values of a message made by `encode` (floats, read-only arrays)."""
-        if len(data) != self._struct.size:
-            raise CodecError(f"message of {len(data)} bytes, expected {self._struct.size} "
-                             f"for ports {list(self.names)}")
         if self.scalar_only:
+            if len(data) != self._struct.size:
+                raise CodecError(f"message of {len(data)} bytes, expected {self._struct.size} "
+                                 f"for ports {list(self.names)}")
             return dict(zip(self.names, self._struct.unpack(data)[4:]))
-        flat = np.frombuffer(data, dtype="<f8", offset=HEADER.size)
-        out: dict[str, Value] = {}
-        for name, offset, size in self._slices:
-            out[name] = float(flat[offset]) if size == 1 else flat[offset:offset + size]
+        if len(data) < self._arrays_at:
+            raise CodecError(f"message of {len(data)} bytes, shorter than the "
+                             f"{self._arrays_at} of ports {list(self.names)} without arrays")
+        out: dict[str, Value] = dict(zip(self._scalar_names,
+                                         self._scalars.unpack_from(data, self._values_at)))
+        at, kept = self._arrays_at, self._kept
+        for index, (name, size) in enumerate(self._arrays):
+            if data[HEADER.size + index] == _SENT:
+                if at + 8 * size > len(data):
+                    raise CodecError(f"message of {len(data)} bytes ends inside {self.role} "
+                                     f"{name!r} (ports {list(self.names)})")
+                array = np.frombuffer(data, dtype="<f8", count=size, offset=at).copy()
+                array.flags.writeable = False
+                kept[index] = array
+                at += 8 * size
+            elif kept[index] is None:
+                raise CodecError(f"{self.role} {name!r} held before it was ever sent")
+            out[name] = kept[index]
+        if at != len(data):
+            raise CodecError(f"message of {len(data)} bytes, expected {at} for ports {list(self.names)}")
         return out
 
     def problem(self, values: Any) -> str:
@@ -106,13 +163,19 @@ class Layout:
         role = self.role
         if not isinstance(values, Mapping):
             return f"returned {type(values).__name__}, expected a mapping of {role} signals"
-        for name, _, size in self._slices:
-            if name not in values:
-                return f"{role} {name!r} missing"
-            problem = value_problem(values[name], size)
+        for port in self.ports:
+            if port.name not in values:
+                return f"{role} {port.name!r} missing"
+            problem = value_problem(values[port.name], port.size)
             if problem:
-                return f"{role} {name!r} {problem}"
+                return f"{role} {port.name!r} {problem}"
         return ""
+
+
+def _frozen(value: Any) -> bool:
+    """A read-only float64 array owning its data: nobody can change its bytes in place."""
+    return (isinstance(value, np.ndarray) and not value.flags.writeable and value.flags.owndata
+            and value.dtype == np.float64)
 
 
 def ports_to_json(ports: Sequence[Port]) -> list[dict[str, Any]]:

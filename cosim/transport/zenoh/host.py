@@ -301,6 +301,9 @@ class ZenohComponents:
     def exchange_outputs(self, remote: RemoteComponent, kind: int, tick: int | None,
                          t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Send START or STEP with `inputs` to `remote`; return its decoded outputs."""
+        if kind == Kind.START:  # every array afresh, both ways (see codec.Layout)
+            remote.in_layout.forget()
+            remote.out_layout.forget()
         try:
             request = remote.in_layout.encode(kind, self._seq + 1, header_tick(tick), t, inputs)
         except CodecError as exc:

@@ -146,6 +146,9 @@ class _Server:
 
     def _step(self, kind: int, seq: int, tick: int, t: float, data: bytes) -> bytes:
         assert self.component is not None
+        if kind == Kind.START:  # every array afresh, both ways (see codec.Layout)
+            self.in_layout.forget()
+            self.out_layout.forget()
         try:
             inputs = self.in_layout.decode(data)
             if kind == Kind.START:
