@@ -22,6 +22,8 @@ from tests.helpers.paths import TEST_FMUS_DIR
 from tests.helpers.synthetic_runs import write_run
 
 DURATION = 5.0
+#: its outputs: the two continuous states, then the Integer and Boolean ones (recorded too)
+BALL_SIGNALS = ["ball.h", "ball.v", "ball.bounces", "ball.resting", "ball.kicked"]
 STATE_TOL = 1e-8     # m, m/s: the framework's RK4 with bisected events against the analytic ball
 
 
@@ -41,7 +43,7 @@ def test_a_ball_gets_signal_statistics_and_no_vehicle_metric(ball_run):
     metrics = ball_run.metrics
     assert not set(metrics) & set(METRIC_NAMES)          # no mu_true_final = 1 from nowhere
     data = load_run(ball_run.path)
-    assert list(data.columns) == ["ball.h", "ball.v"]
+    assert list(data.columns) == BALL_SIGNALS
     for name, v in data.columns.items():
         assert metrics[statistic_name("min", name)] == np.min(v)
         assert metrics[statistic_name("max", name)] == np.max(v)
@@ -70,6 +72,7 @@ def test_the_statistics_are_those_of_the_analytic_bounce(ball_run):
     assert metrics["final(ball.v)"] == pytest.approx(v[-1], abs=STATE_TOL)
     assert metrics["rms(ball.h)"] == pytest.approx(rms(t, h), abs=STATE_TOL)
     assert metrics["rms(ball.v)"] == pytest.approx(rms(t, v), abs=STATE_TOL)
+    assert (metrics["min(ball.kicked)"], metrics["final(ball.kicked)"]) == (0.0, 1.0)  # at 3 s
 
 
 def test_the_default_figure_of_a_ball_is_its_signals_with_units(ball_run, tmp_path):
@@ -77,8 +80,9 @@ def test_the_default_figure_of_a_ball_is_its_signals_with_units(ball_run, tmp_pa
     fig, layout = build_figure([run])
     assert layout == "signals"
     axes = [ax for ax in fig.axes if ax.axison]
-    assert [ax.get_ylabel() for ax in axes] == ["h (m)", "v (m/s)"]
-    for ax, name in zip(axes, ("ball.h", "ball.v")):
+    assert [ax.get_ylabel() for ax in axes] == ["h (m)", "v (m/s)", "bounces", "resting",
+                                                 "kicked"]
+    for ax, name in zip(axes, BALL_SIGNALS, strict=True):
         (line,) = ax.get_lines()
         assert np.array_equal(line.get_xdata(), run.time)       # 500 ticks: drawn as they are
         assert np.array_equal(line.get_ydata(), run.columns[name])
@@ -103,13 +107,15 @@ def test_cli_plot_pattern_matching_nothing_is_one_line_exit_2(ball_run, capsys):
     assert main(["plot", str(ball_run.path), "--signals", "ball.*", "--signals", "car.*"]) == 2
     err = capsys.readouterr().err.strip()
     assert err == (f"error: {ball_run.path}: signal pattern 'car.*' matches no recorded signal "
-                   "(recorded: ball.h, ball.v)")
+                   f"(recorded: {', '.join(BALL_SIGNALS)})")
 
 
 def test_run_plot_signals_draws_the_chosen_signals_in_pattern_order(ball_run):
     fig = ball_run.plot(signals=["*.v", "ball.*"])
     assert [ax.get_title() for ax in fig.axes if ax.axison] == [
-        "ball.v: vertical velocity (continuous state)", "ball.h: height (continuous state)"]
+        "ball.v: vertical velocity (continuous state)", "ball.h: height (continuous state)",
+        "ball.bounces: number of floor impacts", "ball.resting: the ball lies on the floor",
+        "ball.kicked: the kick at t_kick has happened"]
     assert len(ball_run.plot(signals="ball.h").axes) == 1
     with pytest.raises(AnalysisError, match=r"'x\*' matches no recorded signal"):
         ball_run.plot(signals="x*")

@@ -99,5 +99,5 @@ def test_a_role_left_out_defaults_to_the_component_of_its_name(tmp_path):
     (run_dir / "manifest.json").write_text(json.dumps(manifest))
     run = load_run(run_dir)
     assert run.roles == {"vehicle": "vehicle", "controller": "controller", "planner": "plan"}
-    assert run.role_signal("vehicle", "vx") is run.columns["vehicle.vx"]
+    assert np.array_equal(run.role_signal("vehicle", "vx"), run.columns["vehicle.vx"])
     assert run.array(run.role_column("planner", "ref_x")) is None
