@@ -206,12 +206,12 @@ def netns_measure(seconds: float, repeats: int, component_ns: str, master_host: 
     wrap = ("ip", "netns", "exec", component_ns)
 
     class NamespacedChild(ChildProcess):
-        def _start(self, name, argv, stdin, import_path=()):
-            super()._start(name, [*wrap, *argv], stdin, import_path)
+        def _start(self, name, run_id, argv, import_path=()):
+            super()._start(name, run_id, [*wrap, *argv], import_path)
 
     class NamespacedComponents(ZenohComponents):
         def _spawn(self, spec):
-            return NamespacedChild(spec, self.run_id, self.endpoint)
+            return NamespacedChild(spec, self.run_id, self.endpoint, credential=self.credential)
 
     samples = measure(seconds, repeats, NamespacedComponents, master_host, wrap, full_run=False)
     print("SAMPLES " + json.dumps(samples))
