@@ -158,9 +158,11 @@ class TypedFmuComponent(FmuComponent):
         super().__init__(*args, **kwargs)
         self.value_names = None  # no values lane: the ports are not all Float64 scalars
 
+    def _bind_shim(self) -> None:
+        """No shim step: the per-call path, whose set and get are TypedIO's."""
+
     def _bind(self) -> None:
         super()._bind()
-        self._stepper = None  # the per-call path, whose set and get are TypedIO's
         self._io = TypedIO(self.name, self._fmu, self.fmi3, self.inputs, self.outputs,
                            self.interface.value_references)
 
