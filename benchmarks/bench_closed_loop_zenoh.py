@@ -23,6 +23,11 @@ than the wall clock (10 ms clock ticks: use runs of seconds). The target (DESIGN
 makes the real floor 1.1 round trips per tick, printed too. Both transports
 must end in the same signal store, bit for bit (checked: `CHECK FAILED`, exit 1).
 
+Then, with `--breakdown` (the default), where the Zenoh tick goes
+(benchmarks/zenoh_breakdown.py): each component's exchange against its
+in-process step and the raw round trip, and the CPU per tick of each process
+split into its Python main thread and Zenoh's runtime threads.
+
 Then the same across network namespaces (`--netns auto|on|off`): a namespace
 for the master and one for the component processes, joined by veth pairs on a
 bridge (tests/helpers/netns.py; needs root and iproute2; created and removed
@@ -30,6 +35,7 @@ here), the whole measurement re-run inside the master's namespace. Without
 root it prints why and skips.
 
     .venv/bin/python benchmarks/bench_closed_loop_zenoh.py [--seconds 20] [--repeats 5] [--netns auto]
+        [--no-breakdown]
 """
 
 from __future__ import annotations
@@ -245,6 +251,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5, help="rounds of the alternating cases")
     parser.add_argument("--netns", choices=("auto", "on", "off"), default="auto",
                         help="also measure across network namespaces (auto: if root and iproute2)")
+    parser.add_argument("--breakdown", action=argparse.BooleanOptionalAction, default=True,
+                        help="also print where the Zenoh tick goes (one more run of each loop)")
     parser.add_argument("--netns-child", metavar="NS", help=argparse.SUPPRESS)
     parser.add_argument("--master-host", default="127.0.0.1", help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -258,11 +266,18 @@ def main() -> None:
     print(f"satory_nominal, {args.seconds:g} s simulated ({args.seconds * 100:.0f} ticks), {args.repeats} "
           f"alternating repeats, wall clock; load average {before} before, {load_average()} after")
     figures = {"loopback": summarize(samples, "loopback")}
+    if args.breakdown:
+        from benchmarks import zenoh_breakdown
+
+        with RawPair() as pair:
+            pair.measure(200)  # warm-up
+            figures["breakdown"] = zenoh_breakdown.report(prepared_run(args.seconds), _master, pair,
+                                                          RAW_BLOCK)
     if args.netns != "off":
         netns_figures = across_namespaces(args.seconds, args.repeats, args.netns)
         if netns_figures:
             figures["netns"] = netns_figures
-    rows = [row for where, f in figures.items() for row in table_rows(where, f)]
+    rows = [row for where, f in figures.items() if where != "breakdown" for row in table_rows(where, f)]
     emit_results("bench_closed_loop_zenoh", {**figures, "seconds": args.seconds, "repeats": args.repeats,
                                              "load": f"{before} -> {load_average()}"}, rows)
 

@@ -1,0 +1,154 @@
+"""Where the Zenoh tick goes: per-component exchange times and CPU per process and thread kind.
+
+Used by `bench_closed_loop_zenoh.py --breakdown` after its headline cases, in
+runs of their own (the timers wrapped around each call would otherwise weigh
+on the headline figures). For one in-process loop and one Zenoh loop of the
+same scenario it prints:
+
+- each Python component's time per step: in-process, the component's own
+  `step` (thread CPU time); over Zenoh, the whole exchange seen from the
+  master (wall clock from the request's put to the decoded reply), and its
+  share per tick (the planner steps 1 tick in 10);
+- the CPU time per tick of every process of the Zenoh loop, split into its
+  main thread (the Python code), Zenoh's runtime threads (named tx-N, rx-N,
+  net-N, acc-N, app-N: the Rust transport) and any other thread (the master's
+  watchdog);
+- the same for a raw put/subscribe round trip, so that the Zenoh tick reads as
+  its parts: the in-process work, one exchange per component step, and what
+  each exchange costs beyond the raw round trip and the component's in-process
+  step.
+
+The figures are medians over the steps of one run each, so they move with the
+load like the headline ones; the CPU split moves much less.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import statistics
+import time
+import uuid
+from collections import defaultdict
+from collections.abc import Callable
+from typing import Any
+
+ZENOH_THREAD = re.compile(r"^(tx|rx|net|acc|app)-\d+$")
+KINDS = ("main thread", "Zenoh runtime", "other threads")
+
+
+def thread_cpu(pid: int) -> dict[str, float]:
+    """CPU seconds used so far by process `pid`, per thread kind (see KINDS; Linux /proc)."""
+    ticks_per_s = os.sysconf("SC_CLK_TCK")
+    by_kind = dict.fromkeys(KINDS, 0.0)
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            with open(f"/proc/{pid}/task/{tid}/stat") as stat:
+                text = stat.read()
+        except FileNotFoundError:  # the thread ended meanwhile
+            continue
+        name = text[text.index("(") + 1:text.rindex(")")]
+        fields = text.rsplit(")", 1)[1].split()
+        kind = KINDS[0] if int(tid) == pid else KINDS[1] if ZENOH_THREAD.match(name) else KINDS[2]
+        by_kind[kind] += (int(fields[11]) + int(fields[12])) / ticks_per_s
+    return by_kind
+
+
+def _timed(step: Callable, durations: list[float], clock: Callable[[], float]) -> Callable:
+    """`step` with the duration of every call appended to `durations`."""
+
+    def timed(*args: Any) -> Any:
+        start = clock()
+        try:
+            return step(*args)
+        finally:
+            durations.append(clock() - start)
+
+    return timed
+
+
+def inproc_steps(prepared, make_master) -> dict[str, list[float]]:
+    """One in-process loop; each Python component's step durations (thread CPU seconds)."""
+    from cosim.transport.inproc import InprocComponent
+
+    hosts = {launch.name: InprocComponent(launch) for launch in prepared.launches}
+    durations: dict[str, list[float]] = {name: [] for name in hosts}
+    for name, host in hosts.items():
+        host.component.step = _timed(host.component.step, durations[name], time.thread_time)
+    master = make_master(prepared, hosts)
+    try:
+        master.initialize()
+        for k in range(1, master.total_ticks + 1):
+            master.step_tick(k)
+    finally:
+        master.stop_all()
+    return durations
+
+
+def zenoh_steps(prepared, make_master) -> tuple[dict[str, list[float]], dict[str, dict[str, float]], int]:
+    """One Zenoh loop: each component's exchange durations (wall seconds), the CPU seconds per
+    process and thread kind over the loop, and the number of ticks."""
+    from cosim.transport.zenoh import ZenohComponents
+
+    with ZenohComponents(prepared.launches, run_id=f"breakdown{uuid.uuid4().hex[:8]}") as remote:
+        durations: dict[str, list[float]] = {name: [] for name in remote.components}
+        for name, component in remote.components.items():
+            component.step = _timed(component.step, durations[name], time.perf_counter)
+        pids = {"master": os.getpid(), **remote.pids}
+        master = make_master(prepared, remote.components)
+        try:
+            master.initialize()
+            before = {name: thread_cpu(pid) for name, pid in pids.items()}
+            for k in range(1, master.total_ticks + 1):
+                master.step_tick(k)
+            after = {name: thread_cpu(pid) for name, pid in pids.items()}
+        finally:
+            master.stop_all()
+    cpu = {name: {kind: after[name][kind] - before[name][kind] for kind in KINDS} for name in pids}
+    return durations, cpu, master.total_ticks
+
+
+def raw_cpu(pair, count: int) -> tuple[float, dict[str, dict[str, float]]]:
+    """Median wall seconds of `count` raw round trips, and the CPU seconds per round trip of
+    both processes per thread kind."""
+    pids = {"this process": os.getpid(), "echo process": pair.child.pid}
+    before = {name: thread_cpu(pid) for name, pid in pids.items()}
+    median = statistics.median(pair.measure(count))
+    after = {name: thread_cpu(pid) for name, pid in pids.items()}
+    return median, {name: {kind: (after[name][kind] - before[name][kind]) / count for kind in KINDS}
+                    for name in pids}
+
+
+def report(prepared, make_master, pair, raw_count: int) -> dict[str, Any]:
+    """Run the breakdown, print it, and return its figures (microseconds)."""
+    inproc = inproc_steps(prepared, make_master)
+    remote, cpu, ticks = zenoh_steps(prepared, make_master)
+    raw_median, raw_split = raw_cpu(pair, raw_count)
+    us = 1e6
+    figures: dict[str, Any] = {"raw round trip median": raw_median * us, "components": {}, "cpu": {}}
+    print("\nwhere the Zenoh tick goes (one run each, medians over the steps; wrapped timers):")
+    print(f"{'component':<12}{'steps':>7}{'in-process step':>17}{'Zenoh exchange':>16}"
+          f"{'beyond step + raw RT':>22}{'exchange per tick':>19}")
+    for name, exchanges in remote.items():
+        step, exchange = statistics.median(inproc[name]) * us, statistics.median(exchanges) * us
+        beyond = exchange - step - raw_median * us
+        per_tick = sum(exchanges) / ticks * us
+        figures["components"][name] = {"steps": len(exchanges), "inproc step": step,
+                                       "exchange": exchange, "beyond": beyond, "per tick": per_tick}
+        print(f"{name:<12}{len(exchanges):>7}{step:>15.1f}us{exchange:>14.1f}us{beyond:>20.1f}us"
+              f"{per_tick:>17.1f}us")
+    print(f"raw round trip (median of {raw_count}): {raw_median * us:.1f} us")
+    print("\nCPU per tick of the Zenoh loop's processes (us), and per raw round trip:")
+    print(f"{'process':<16}" + "".join(f"{kind:>16}" for kind in KINDS) + f"{'all':>10}")
+    rows = {name: {kind: value / ticks * us for kind, value in split.items()} for name, split in cpu.items()}
+    rows.update({f"raw: {name}": {kind: value * us for kind, value in split.items()}
+                 for name, split in raw_split.items()})
+    for name, split in rows.items():
+        figures["cpu"][name] = split
+        print(f"{name:<16}" + "".join(f"{split[kind]:>16.1f}" for kind in KINDS)
+              + f"{sum(split.values()):>10.1f}")
+    totals = defaultdict(float)
+    for name, split in rows.items():
+        totals["raw round trip" if name.startswith("raw: ") else "zenoh loop"] += sum(split.values())
+    print("all processes: " + ", ".join(f"{k} {v:.1f} us" for k, v in totals.items()))
+    return figures
