@@ -68,15 +68,25 @@ class RawPair:
             pass
         return self
 
-    def measure(self, count: int) -> list[float]:
-        """Seconds of `count` round trips, one by one."""
+    def measure(self, count: int, busy_s: float = 0.0) -> list[float]:
+        """Seconds of `count` round trips, one by one.
+
+        Args:
+            count: round trips.
+            busy_s: this process computes (a busy loop) for that long between round trips,
+                so both processes come to each round trip after an idle or busy spell as
+                in a lockstep loop (0: back to back).
+        """
         times, clock = [], time.perf_counter
         ping, pongs, payload = self.ping, self.pongs, self.payload
         for _ in range(count):
             start = clock()
             ping.put(payload)
             pongs.recv().payload.to_bytes()
-            times.append(clock() - start)
+            end = clock()
+            times.append(end - start)
+            while clock() - end < busy_s:
+                pass
         return times
 
     def __exit__(self, *exc_info: object) -> None:

@@ -16,7 +16,13 @@ same scenario it prints:
 - the same for a raw put/subscribe round trip, so that the Zenoh tick reads as
   its parts: the in-process work, one exchange per component step, and what
   each exchange costs beyond the raw round trip and the component's in-process
-  step.
+  step;
+- the raw round trip again with this process busy for one in-process tick
+  between round trips: in the loop no process sends back to back, and on this
+  kind of machine (a VM) a thread that was idle or busy elsewhere for a while
+  runs its next put and receive measurably slower (cold caches, a halted vCPU
+  to wake). Its floor, in-process tick + that round trip, is printed beside
+  the headline one.
 
 The figures are medians over the steps of one run each, so they move with the
 load like the headline ones; the CPU split moves much less.
@@ -67,8 +73,9 @@ def _timed(step: Callable, durations: list[float], clock: Callable[[], float]) -
     return timed
 
 
-def inproc_steps(prepared, make_master) -> dict[str, list[float]]:
-    """One in-process loop; each Python component's step durations (thread CPU seconds)."""
+def inproc_steps(prepared, make_master) -> tuple[dict[str, list[float]], float]:
+    """One in-process loop: each Python component's step durations (thread CPU seconds), and
+    the wall seconds per tick of the whole loop."""
     from cosim.transport.inproc import InprocComponent
 
     hosts = {launch.name: InprocComponent(launch) for launch in prepared.launches}
@@ -78,16 +85,19 @@ def inproc_steps(prepared, make_master) -> dict[str, list[float]]:
     master = make_master(prepared, hosts)
     try:
         master.initialize()
+        start = time.perf_counter()
         for k in range(1, master.total_ticks + 1):
             master.step_tick(k)
+        tick = (time.perf_counter() - start) / master.total_ticks
     finally:
         master.stop_all()
-    return durations
+    return durations, tick
 
 
-def zenoh_steps(prepared, make_master) -> tuple[dict[str, list[float]], dict[str, dict[str, float]], int]:
+def zenoh_steps(prepared, make_master) -> tuple[dict[str, list[float]], dict[str, dict[str, float]],
+                                                float]:
     """One Zenoh loop: each component's exchange durations (wall seconds), the CPU seconds per
-    process and thread kind over the loop, and the number of ticks."""
+    tick of each process by thread kind, and the wall seconds per tick of the loop."""
     from cosim.transport.zenoh import ZenohComponents
 
     with ZenohComponents(prepared.launches, run_id=f"breakdown{uuid.uuid4().hex[:8]}") as remote:
@@ -99,33 +109,46 @@ def zenoh_steps(prepared, make_master) -> tuple[dict[str, list[float]], dict[str
         try:
             master.initialize()
             before = {name: thread_cpu(pid) for name, pid in pids.items()}
+            start = time.perf_counter()
             for k in range(1, master.total_ticks + 1):
                 master.step_tick(k)
+            tick = (time.perf_counter() - start) / master.total_ticks
             after = {name: thread_cpu(pid) for name, pid in pids.items()}
         finally:
             master.stop_all()
-    cpu = {name: {kind: after[name][kind] - before[name][kind] for kind in KINDS} for name in pids}
-    return durations, cpu, master.total_ticks
+    ticks = master.total_ticks
+    cpu = {name: {kind: (after[name][kind] - before[name][kind]) / ticks for kind in KINDS}
+           for name in pids}
+    return durations, cpu, tick
 
 
-def raw_cpu(pair, count: int) -> tuple[float, dict[str, dict[str, float]]]:
-    """Median wall seconds of `count` raw round trips, and the CPU seconds per round trip of
-    both processes per thread kind."""
+def raw_cpu(pair, count: int, busy_s: float = 0.0) -> tuple[float, dict[str, dict[str, float]]]:
+    """Median wall seconds of `count` raw round trips (this process busy for `busy_s` between
+    them), and the CPU seconds per round trip of both processes per thread kind (the busy
+    spell's CPU not counted)."""
     pids = {"this process": os.getpid(), "echo process": pair.child.pid}
     before = {name: thread_cpu(pid) for name, pid in pids.items()}
-    median = statistics.median(pair.measure(count))
+    times = pair.measure(count, busy_s)
+    median = statistics.median(times)
     after = {name: thread_cpu(pid) for name, pid in pids.items()}
-    return median, {name: {kind: (after[name][kind] - before[name][kind]) / count for kind in KINDS}
-                    for name in pids}
+    split = {name: {kind: (after[name][kind] - before[name][kind]) / count for kind in KINDS}
+             for name in pids}
+    split["this process"][KINDS[0]] -= busy_s
+    return median, split
 
 
 def report(prepared, make_master, pair, raw_count: int) -> dict[str, Any]:
     """Run the breakdown, print it, and return its figures (microseconds)."""
-    inproc = inproc_steps(prepared, make_master)
-    remote, cpu, ticks = zenoh_steps(prepared, make_master)
+    inproc, inproc_tick = inproc_steps(prepared, make_master)
+    remote, cpu, zenoh_tick = zenoh_steps(prepared, make_master)
+    ticks = prepared.scenario.total_ticks
     raw_median, raw_split = raw_cpu(pair, raw_count)
+    busy_median, _ = raw_cpu(pair, raw_count, inproc_tick)
     us = 1e6
-    figures: dict[str, Any] = {"raw round trip median": raw_median * us, "components": {}, "cpu": {}}
+    figures: dict[str, Any] = {"raw round trip median": raw_median * us,
+                               "raw round trip after a busy tick median": busy_median * us,
+                               "inproc tick": inproc_tick * us, "zenoh tick": zenoh_tick * us,
+                               "components": {}, "cpu": {}}
     print("\nwhere the Zenoh tick goes (one run each, medians over the steps; wrapped timers):")
     print(f"{'component':<12}{'steps':>7}{'in-process step':>17}{'Zenoh exchange':>16}"
           f"{'beyond step + raw RT':>22}{'exchange per tick':>19}")
@@ -137,10 +160,17 @@ def report(prepared, make_master, pair, raw_count: int) -> dict[str, Any]:
                                        "exchange": exchange, "beyond": beyond, "per tick": per_tick}
         print(f"{name:<12}{len(exchanges):>7}{step:>15.1f}us{exchange:>14.1f}us{beyond:>20.1f}us"
               f"{per_tick:>17.1f}us")
-    print(f"raw round trip (median of {raw_count}): {raw_median * us:.1f} us")
+    print(f"raw round trip (median of {raw_count}): {raw_median * us:.1f} us back to back, "
+          f"{busy_median * us:.1f} us with this process busy {inproc_tick * us:.0f} us (one "
+          f"in-process tick) between round trips")
+    for label, rt in (("back to back", raw_median), ("after a busy tick", busy_median)):
+        floor = inproc_tick + rt
+        figures[f"ratio to floor, round trip {label}"] = zenoh_tick / floor
+        print(f"this run's Zenoh tick {zenoh_tick * us:.0f} us / (in-process tick "
+              f"{inproc_tick * us:.0f} + round trip {label} {rt * us:.0f} us) = {zenoh_tick / floor:.2f}")
     print("\nCPU per tick of the Zenoh loop's processes (us), and per raw round trip:")
     print(f"{'process':<16}" + "".join(f"{kind:>16}" for kind in KINDS) + f"{'all':>10}")
-    rows = {name: {kind: value / ticks * us for kind, value in split.items()} for name, split in cpu.items()}
+    rows = {name: {kind: value * us for kind, value in split.items()} for name, split in cpu.items()}
     rows.update({f"raw: {name}": {kind: value * us for kind, value in split.items()}
                  for name, split in raw_split.items()})
     for name, split in rows.items():
