@@ -47,7 +47,8 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.common import PROFILERS, load_average, profile_call, speed_anchor  # noqa: E402
+from benchmarks.common import (PROFILERS, load_average, profile_call, speed_anchor,  # noqa: E402
+                               outputs_read)
 
 from cosim.errors import UserError  # noqa: E402
 from cosim.fmu.host import FmuComponent  # noqa: E402
@@ -167,7 +168,8 @@ def build_master(prepared, hosted: dict) -> Master:
     unsupported = {n: c.interface.unsupported for n, c in hosted.items() if isinstance(c, FmuComponent)}
     edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()}, unsupported)
     return Master(hosted, edges, scenario.tick, scenario.total_ticks,
-                  fmu_hosting.start_time(scenario, prepared.fmus))
+                  fmu_hosting.start_time(scenario, prepared.fmus),
+                  outputs_read=outputs_read(hosted, edges, scenario))  # as `cosim run` tells them
 
 
 def run_once(prepared, timed: bool) -> tuple[float, dict[str, tuple[float, int]]]:

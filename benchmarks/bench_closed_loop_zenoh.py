@@ -54,7 +54,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.bench_zenoh import RawPair  # noqa: E402
-from benchmarks.common import emit_results, load_average, min_and_median, table_row  # noqa: E402
+from benchmarks.common import (emit_results, load_average, min_and_median, table_row,  # noqa: E402
+                               outputs_read)
 
 SCENARIO = ROOT / "scenarios" / "satory_nominal.yaml"
 TARGET = 1.25
@@ -88,7 +89,8 @@ def _master(prepared, python_hosts: dict):
     unsupported = {n: c.interface.unsupported for n, c in hosted.items() if isinstance(c, FmuComponent)}
     edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()}, unsupported)
     return Master(hosted, edges, scenario.tick, scenario.total_ticks,
-                  fmu_hosting.start_time(scenario, prepared.fmus))
+                  fmu_hosting.start_time(scenario, prepared.fmus),
+                  outputs_read=outputs_read(hosted, edges, scenario))  # as `cosim run` tells them
 
 
 def _cpu_seconds(pids: list[int]) -> float:

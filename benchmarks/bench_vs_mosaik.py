@@ -45,19 +45,24 @@ RECORD = ("x", "y", "psi", "vx")
 
 
 def _edges_and_defaults(overrides: list[str]):
-    """Our resolved edges, which components are direct feedthrough, and every output's default."""
+    """Our resolved edges, which components are direct feedthrough, every output's default, and
+    each component's outputs the run reads (what our master tells `use_outputs`: the mosaik
+    simulators tell our components the same, so both sides do the same work)."""
     from benchmarks.bench_closed_loop_zenoh import _master
+    from benchmarks.common import outputs_read
     from cosim.execution.prepare import prepare_run
     from cosim.scenario.loader import load_scenario
     from cosim.transport.inproc import InprocComponent
 
     prepared = prepare_run(load_scenario(SCENARIO, overrides))
     master = _master(prepared, {l.name: InprocComponent(l) for l in prepared.launches})
-    edges = [(e.src, e.src_port, e.dst, e.dst_port) for e in _resolved_edges(prepared, master)]
+    resolved = _resolved_edges(prepared, master)
+    edges = [(e.src, e.src_port, e.dst, e.dst_port) for e in resolved]
     feedthrough = {n: bool(getattr(c, "direct_feedthrough", True)) for n, c in master.components.items()}
     defaults = {(n, p.name): p.zero() for n, c in master.components.items() for p in c.outputs}
+    reads = outputs_read(master.components, resolved, prepared.scenario)
     master.stop_all()
-    return prepared.scenario.total_ticks, list(master.components), edges, feedthrough, defaults
+    return prepared.scenario.total_ticks, list(master.components), edges, feedthrough, defaults, reads
 
 
 def _resolved_edges(prepared, master):
@@ -73,7 +78,7 @@ def run_mosaik(seconds: float, processes: bool, record_to: Path) -> float:
     import mosaik
 
     overrides = [f"duration={seconds:g}"]
-    ticks, names, edges, feedthrough, defaults = _edges_and_defaults(overrides)
+    ticks, names, edges, feedthrough, defaults, reads = _edges_and_defaults(overrides)
     if processes:
         cmd = f"{sys.executable} -m benchmarks.mosaik_sims %(addr)s"
         sim_config = {"Cosim": {"cmd": cmd, "cwd": str(ROOT)}}
@@ -84,7 +89,7 @@ def run_mosaik(seconds: float, processes: bool, record_to: Path) -> float:
     for name in names:
         extra = {"record": list(RECORD), "record_to": str(record_to)} if name == "vehicle" else {}
         sim = world.start("Cosim", sim_id=name, scenario=str(SCENARIO), overrides=overrides, name=name,
-                          as_lists=processes, **extra)
+                          as_lists=processes, reads=sorted(reads[name]), **extra)
         entities[name] = sim.Component()
     by_pair: dict[tuple[str, str], list[tuple[str, str]]] = {}
     for src, src_port, dst, dst_port in edges:

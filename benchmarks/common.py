@@ -231,3 +231,15 @@ def _split_py_spy_frame(frame: str) -> tuple[str, str]:
     """'function (file.py:123)' -> ('function', 'file.py')."""
     match = _PY_SPY_FRAME.match(frame)
     return (match.group(1), match.group(2)) if match else (frame, "")
+
+
+
+def outputs_read(hosted: Mapping[str, object], edges, scenario) -> dict[str, frozenset[str]]:
+    """The outputs the run reads as `cosim run` finds them (its recorder's selection from the
+    scenario's `record:`), for a benchmark's master over its own hosts to do the same work."""
+    from cosim.engine.wiring import outputs_read as read
+    from cosim.results.recorder import selected
+
+    include, exclude = scenario.record.include, scenario.record.exclude
+    ports = {name: (c.inputs, c.outputs) for name, c in hosted.items()}
+    return read(edges, ports, lambda name: selected(name, include, exclude))

@@ -49,8 +49,10 @@ class CosimSim(mosaik_api_v3.Simulator):
         self.trajectory: list[tuple[float, ...]] = []
 
     def init(self, sid, time_resolution=1.0, scenario="", overrides=(), name="", as_lists=False,
-             record=(), record_to=""):
+             record=(), record_to="", reads=None):
         prepared, self.host = _host(scenario, list(overrides), name)
+        if reads is not None and hasattr(self.host, "use_outputs"):
+            self.host.use_outputs(set(reads))  # what our master tells it: the same work on both sides
         from cosim.execution.fmu_hosting import start_time
 
         self.t0, self.tick = start_time(prepared.scenario, prepared.fmus), prepared.scenario.tick

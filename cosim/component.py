@@ -5,6 +5,7 @@ runner (in its own OS process, speaking Zenoh) hosts it and calls, in order:
 
     comp = SomeComponent(**parameters)      # parameters from the scenario YAML
     comp.inputs, comp.outputs               # port declarations, fixed after __init__
+    comp.use_outputs(names)                 # optional: the outputs something reads
     outputs_0 = comp.initialize(t0, inputs_0)
     outputs_k = comp.step(t_k, inputs_k)    # every period, t_k = t0 + k * tick
 
@@ -17,11 +18,19 @@ an error the master reports with the component's name and the tick.
 `step` receives the values of the inputs at time t (Gauss-Seidel: the plant has
 already been advanced to t) and returns the outputs valid from t until its next
 step. The component keeps its own state between calls.
+
+`use_outputs` tells the component, once before `initialize`, which of its
+outputs the run reads: every scalar output, and each array output that is
+connected to an input, recorded, or shown by an extra observer (with one, such
+as the Foxglove live view, every output counts as read). A component whose
+unread outputs are costly may skip computing them; it must still return them,
+finite and of the declared size (holding one value is simplest), and its read
+outputs must not change. The default ignores the call.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Set
 from dataclasses import dataclass
 from typing import ClassVar, Union
 
@@ -89,6 +98,10 @@ class Component:
     outputs: tuple[Port, ...] = ()
     default_period: ClassVar[float | None] = None
     parameters_model: ClassVar[type | None] = None
+
+    def use_outputs(self, names: Set[str]) -> None:
+        """Called once before `initialize` with the names of the outputs the run reads (see
+        the module docstring); the others may be held instead of computed. Default: ignored."""
 
     def initialize(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Set up state at t0 from the initial inputs and return the initial outputs."""

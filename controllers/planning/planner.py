@@ -6,7 +6,9 @@ low-energy speed profile along its own arc length (controllers.planning.speed_pr
 At every step (10 Hz by default) it tracks the vehicle's progress along the
 road (warm-started projection, unwrapped over laps of a closed road) and
 samples both options into fixed-size windows (controllers.trajectory): the
-recommended one on the `ref_*` ports, the alternative on `alt_*`.
+recommended one on the `ref_*` ports, the alternative on `alt_*`. When the
+run reads no `alt_*` output (`use_outputs`: not connected, not recorded), the
+alternative is planned once, at initialize, and that window is held.
 
 Window points are equally spaced in reference arc length, the first
 `window_back` metres behind the vehicle's projection; the spacing grows if
@@ -46,7 +48,7 @@ profile (controllers.planning.following).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Set
 
 import numpy as np
 
@@ -155,6 +157,13 @@ def window_signals(prefix: str, *fields: np.ndarray) -> dict[str, np.ndarray]:
     return {f"{prefix}_{name}": value for (name, _, _), value in zip(FIELDS, fields)}
 
 
+def _read_only(value: np.ndarray) -> np.ndarray:
+    """A read-only copy (held outputs: the same object every step, so a transport sends it once)."""
+    copy = np.array(value, dtype=np.float64)
+    copy.flags.writeable = False
+    return copy
+
+
 class Planner(Component):
     """Trajectory planner: recommended and alternative windows from road + manoeuvre."""
 
@@ -236,6 +245,8 @@ class Planner(Component):
         self.ref_route: RoutePlan | None = None
         self.alt_route: RoutePlan | None = None
         self.holding = False
+        self.alt_read = True  # False: nothing reads alt_* (use_outputs), the first window is held
+        self._alt_held: dict[str, np.ndarray] | None = None
 
     def _spacing(self, minimum: float, preview: float, period: float) -> int:
         """Window spacing, in route grid steps, that covers the required reach."""
@@ -248,6 +259,12 @@ class Planner(Component):
         return int(np.ceil(spacing / ROUTE_DS - 1e-9))
 
     # ---- component protocol ---------------------------------------------
+    def use_outputs(self, names: Set[str]) -> None:
+        """Plan the alternative window only when the run reads it (its dynamic lane change,
+        planned afresh at every step, is most of a lane-keeping step); otherwise the first
+        one is held."""
+        self.alt_read = any(name.startswith("alt_") for name in names)
+
     def initialize(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Locate the vehicle, lay out both options over the route, return the first windows."""
         x, y, psi, vx = self._read(t0, inputs)
@@ -273,6 +290,7 @@ class Planner(Component):
             raise ComponentError(f"at t = {t0}: {exc}") from None
         self.offset = proj.lateral
         self.holding = False
+        self._alt_held = None
         if self.follower is not None:
             self.follower.reset()
             self.follower.read(t0, inputs)
@@ -328,6 +346,16 @@ class Planner(Component):
                                  f"route [{self.grid.s[0]:.2f}, {self.grid.s[-1]:.2f}] m")
         return slice(first, last + 1, self.step_pts)
 
+    def _alt_window(self, idx: slice, vx: float, psi_shift: float, d_now: float) -> dict[str, np.ndarray]:
+        """The alternative window: planned now, or the held first one when nothing reads it."""
+        if self._alt_held is not None:
+            return self._alt_held
+        alt = (self._dynamic_alt(idx, vx, psi_shift, d_now) if self.alt_route is None
+               else self.alt_route.window(idx, psi_shift, "alt"))
+        if not self.alt_read:
+            alt = self._alt_held = {name: _read_only(value) for name, value in alt.items()}
+        return alt
+
     def _dynamic_alt(self, idx: slice, vx: float, psi_shift: float, d_now: float) -> dict[str, np.ndarray]:
         """Window of the lane change to plan.alt_lane starting at the vehicle's progress.
 
@@ -351,8 +379,7 @@ class Planner(Component):
         shift = 2 * np.pi * round((psi - self.ref_route.psi[idx.start]) / (2 * np.pi))
         d_now = float(np.interp(self.progress, self.grid.s, self.ref_route.d))
         out: dict[str, Value] = self.ref_route.window(idx, shift, "ref")
-        out.update(self._dynamic_alt(idx, vx, shift, d_now) if self.alt_route is None
-                   else self.alt_route.window(idx, shift, "alt"))
+        out.update(self._alt_window(idx, vx, shift, d_now))
         out["s_vehicle"] = float(self.progress)
         out["lateral_offset"] = float(self.offset - d_now)
         out["v_ref"] = float(np.interp(self.progress, self.grid.s, self.ref_route.v))

@@ -28,6 +28,10 @@ class HostedComponent(Protocol):
     of floats, in the orders its `value_names` = (input names, output names)
     gives. The master uses it for a component whose ports are all scalars and
     are those names in that order (no mapping built or read per step).
+
+    Optional too: `use_outputs(names)`, which passes on to a Python component
+    the outputs the run reads (`cosim.component.Component.use_outputs`); the
+    master calls it once on every host that has it, before starting any.
     """
 
     name: str
@@ -46,3 +50,4 @@ class HostedComponent(Protocol):
     def stop(self) -> dict[str, float]:
         """End the component (process, FMU instance); return its final metrics."""
         ...
+

@@ -29,7 +29,7 @@ and is observed, and `stop_request` says who asked.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence, Set
 from dataclasses import dataclass
 from math import isfinite as _isfinite
 from typing import Any, Protocol
@@ -93,18 +93,22 @@ class Master:
             for every start and step, for tests.
         crumb: a writable memoryview of int64 (format "q") whose item 0 gets
             the breadcrumb (shared memory a supervisor reads); None: a private word.
+        outputs_read: component -> the outputs the run reads
+            (`cosim.engine.wiring.outputs_read`), told to every host that has
+            `use_outputs` before any starts; None: nothing is told.
     """
 
     def __init__(self, components: Mapping[str, HostedComponent], edges: Iterable[Any],
                  tick: float, total_ticks: int, t0: float = 0.0,
                  observers: Sequence[Observer] = (), trace: bool = False,
-                 crumb: Any = None) -> None:
+                 crumb: Any = None, outputs_read: Mapping[str, Set[str]] | None = None) -> None:
         edges = list(edges)
         self.components = dict(components)
         self.tick = float(tick)
         self.total_ticks = int(total_ticks)
         self.t0 = float(t0)
         self.observers = list(observers)
+        self.outputs_read = outputs_read
         self.trace: list[tuple[int, str, dict[str, Any]]] | None = [] if trace else None
         self.layout: SignalLayout = build_layout(self.components, edges)
         feedthrough = {n: bool(getattr(c, "direct_feedthrough", True))
@@ -172,6 +176,8 @@ class Master:
         for observer in self.observers:
             observer.begin(self)
         t0 = self.t0
+        if self.outputs_read is not None:
+            self._tell_outputs_read(self.outputs_read)
         for plan in self._plans:
             inputs = self._gather(plan)
             if self.trace is not None:
@@ -182,6 +188,14 @@ class Master:
             self.crumb[0] = 0
             self._scatter(plan, outputs, None, t0)
         self._finish_tick(0, t0)
+
+    def _tell_outputs_read(self, outputs_read: Mapping[str, Set[str]]) -> None:
+        for plan in self._plans:
+            tell = getattr(plan.hosted, "use_outputs", None)
+            if tell is not None:
+                self.crumb[0] = crumb_code(plan.index, CALL_START)
+                tell(outputs_read[plan.name])
+        self.crumb[0] = 0
 
     def step_tick(self, k: int) -> None:
         """Run tick k: refresh delayed inputs, step the due components in order.

@@ -213,3 +213,22 @@ def unconnected_inputs(edges: Iterable[Edge], ports: PortTable) -> list[tuple[st
     driven = {(e.dst, e.dst_port) for e in edges}
     return [(name, port) for name, (inputs, _) in ports.items()
             for port in inputs if (name, port.name) not in driven]
+
+
+def outputs_read(edges: Iterable[Edge], ports: PortTable,
+                 recorded: Callable[[str], bool]) -> dict[str, frozenset[str]]:
+    """Each component's outputs that the run reads (what `Component.use_outputs` receives).
+
+    Every scalar output counts (the live view shows them all), and each array output
+    that an edge carries or that is recorded.
+
+    Args:
+        edges: the resolved edges.
+        ports: component name -> (inputs, outputs).
+        recorded: whether the recorder keeps "component.signal".
+    """
+    carried = {(e.src, e.src_port) for e in edges}
+    return {name: frozenset(port.name for port in outputs
+                            if port.size == 1 or (name, port.name) in carried
+                            or recorded(f"{name}.{port.name}"))
+            for name, (_, outputs) in ports.items()}

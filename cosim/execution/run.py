@@ -424,7 +424,7 @@ def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
     from cosim.engine.master import Master
     from cosim.results.manifest import signal_info
     from cosim.results.recorder import Recorder
-    from cosim.engine.wiring import resolve_wiring
+    from cosim.engine.wiring import outputs_read, resolve_wiring
 
     edges = resolve_wiring(scenario, {n: (c.inputs, c.outputs) for n, c in hosted.items()},
                            _unsupported(hosted))
@@ -433,6 +433,10 @@ def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
                         on_writer=page.note_writer if page is not None else None,
                         every=scenario.record.every, formats=scenario.record.format,
                         column_info=signal_info(hosted))
+    # an extra observer (the Foxglove view) may read any output: then nothing is told
+    read = (None if options.observers else
+            outputs_read(edges, {n: (c.inputs, c.outputs) for n, c in hosted.items()},
+                         recorder.records))
     pacer = bar = None
     if realtime is not None:
         from cosim.engine.pacing import RealtimePacer
@@ -447,7 +451,7 @@ def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,
         observers.append(_LivePublisher(remote.live))
     observers.extend(options.observers)
     master = Master(hosted, edges, scenario.tick, scenario.total_ticks, options.t0, observers,
-                    crumb=page.crumb if page is not None else None)
+                    crumb=page.crumb if page is not None else None, outputs_read=read)
     return master, recorder, pacer, bar
 
 

@@ -190,6 +190,10 @@ class Recorder:
         self.failed: RunFolderError | None = None  # the folder could not be written
         self._started = time.monotonic()
 
+    def records(self, name: str) -> bool:
+        """Whether this recorder keeps signal "component.signal"."""
+        return selected(name, self.include, self.exclude)
+
     def begin(self, master: Any) -> None:
         """Choose the columns from the master's layout; write the CSV and spool headers."""
         try:

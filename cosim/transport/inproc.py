@@ -10,7 +10,7 @@ text of a component's exception, shared with the Zenoh runner.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Mapping
+from collections.abc import Mapping, Set
 
 from cosim.component import Component, ComponentError, Port, Value, ports_by_name
 from cosim.errors import ComponentFailure, UserError, did_you_mean
@@ -111,6 +111,14 @@ class InprocComponent:
         self.inputs: tuple[Port, ...] = tuple(self.component.inputs)
         self.outputs: tuple[Port, ...] = tuple(self.component.outputs)
         self._last: tuple[int | None, float] = (None, 0.0)  # (tick, t) of the last call, for finish() errors
+
+    def use_outputs(self, names: Set[str]) -> None:
+        """Tell the component which outputs the run reads (`Component.use_outputs`)."""
+        try:
+            self.component.use_outputs(frozenset(names))
+        except Exception as exc:
+            raise ComponentFailure(self.name, None, 0.0,
+                                   f"use_outputs() failed: {describe_exception(exc)}") from exc
 
     def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Call the component's `initialize(t0, inputs)`."""

@@ -217,3 +217,31 @@ class Segfault(Component):
 
             ctypes.string_at(0)
         return {"y": inputs["u"]}
+
+
+class OutputReader(Component):
+    """Reports what `use_outputs` told it: `heard` = 1 (called before initialize) + 2 if array
+    output `a` is read + 4 if array output `b` is read; 0 if never called. `fail` makes
+    `use_outputs` raise."""
+
+    inputs = (Port("u"),)
+    outputs = (Port("y"), Port("heard"), Port("a", size=3), Port("b", size=3))
+
+    def __init__(self, fail: bool = False):
+        self.fail = fail
+        self.told: frozenset[str] | None = None
+        self.initialized = False
+
+    def use_outputs(self, names):
+        if self.fail:
+            raise ValueError("refusing the names")
+        self.heard = 1.0 * (not self.initialized) + 2.0 * ("a" in names) + 4.0 * ("b" in names)
+        self.told = frozenset(names)
+
+    def initialize(self, t0, inputs):
+        self.initialized = True
+        return self.step(t0, inputs)
+
+    def step(self, t, inputs):
+        heard = self.heard if self.told is not None else 0.0
+        return {"y": inputs["u"], "heard": heard, "a": np.full(3, t), "b": np.full(3, -t)}

@@ -21,7 +21,7 @@ the children's interpreters start while the master finishes its own imports.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping, Sequence, Set
 from typing import TYPE_CHECKING, Any
 
 import zenoh
@@ -31,7 +31,7 @@ from cosim.transport.launch import PythonComponentLaunch
 from cosim.transport.zenoh import auth, config
 from cosim.transport.zenoh.auth import Credential, Dictionary, new_credential
 from cosim.transport.zenoh.processes import ChildProcess, reap
-from cosim.transport.zenoh.wire import HEADER, CodecError, Kind, decode_json, header_tick
+from cosim.transport.zenoh.wire import HEADER, CodecError, Kind, decode_json, encode_json, header_tick
 
 if TYPE_CHECKING:  # numpy-backed modules load after the processes are spawned
     import numpy as np
@@ -50,7 +50,7 @@ class RemoteComponent:
 
     def __init__(self, host: "ZenohComponents", spec: PythonComponentLaunch,
                  inputs: tuple[Port, ...], outputs: tuple[Port, ...], pid: int,
-                 channel: tuple[Any, Any]) -> None:
+                 channel: tuple[Any, Any], uses_outputs: bool = False) -> None:
         from cosim.transport.zenoh.codec import Layout
 
         self.name = spec.name
@@ -61,7 +61,14 @@ class RemoteComponent:
         self.in_layout = Layout(inputs, "input")
         self.out_layout = Layout(outputs, "output")
         self.publisher, self.replies = channel  # requests out, replies in
+        self.uses_outputs = uses_outputs  # its class hears use_outputs (from the handshake)
         self._host = host
+
+    def use_outputs(self, names: Set[str]) -> None:
+        """Tell the remote component which outputs the run reads (one exchange, when its
+        class hears it: as in-process, it then hears it whatever the names)."""
+        if self.uses_outputs:
+            self._host.exchange_use(self, names)
 
     def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Initialize the remote component at t0; return its initial outputs."""
@@ -287,7 +294,7 @@ class ZenohComponents:
                     ready[name] = RemoteComponent(
                         self, pending.pop(name), ports_from_json(document["inputs"]),
                         ports_from_json(document["outputs"]), int(document["pid"]),
-                        channels[name])
+                        channels[name], bool(document.get("uses_outputs")))
                     self.process_startup_s[name] = dict(document.get("startup_s") or {})
             if not got:
                 time.sleep(0.002)
@@ -313,6 +320,11 @@ class ZenohComponents:
             return remote.out_layout.decode(data)
         except CodecError as exc:
             raise self._fail(ComponentFailure(remote.name, tick, t, str(exc))) from None
+
+    def exchange_use(self, remote: RemoteComponent, names: Set[str]) -> None:
+        """Send USE with `names` to `remote` and wait until its use_outputs returned."""
+        request = encode_json(Kind.USE, self._seq + 1, -1, 0.0, {"outputs": sorted(names)})
+        self._exchange(remote, request, None, 0.0)
 
     def exchange_stop(self, remote: RemoteComponent) -> dict[str, float]:
         """Send STOP to `remote`; return its metrics ({} if it already failed: that
@@ -342,7 +354,8 @@ class ZenohComponents:
         while True:
             data = recv().payload.to_bytes()
             kind, reply_seq = HEADER.unpack_from(data)[:2]
-            if reply_seq == seq and (kind == Kind.OUTPUTS or kind == Kind.METRICS):
+            if reply_seq == seq and (kind == Kind.OUTPUTS or kind == Kind.METRICS
+                                     or kind == Kind.USED):
                 watchdog.disarm()
                 return data
             failure = self._failure_in(kind, reply_seq, seq, data, remote, tick, t)

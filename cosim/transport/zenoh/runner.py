@@ -12,7 +12,9 @@ plain session, without a credential).
 
 The process joins the master's endpoint as a peer, declares a liveliness
 token, builds the component, then answers requests in a blocking receive
-loop in the main thread: HELLO (its port declarations), START, STEP and STOP.
+loop in the main thread: HELLO (its port declarations, and whether its class
+hears `use_outputs`), USE (the outputs the run reads, before START), START,
+STEP and STOP.
 Exceptions and bad outputs go back to the master as an ERROR reply. The
 process ignores SIGINT (the master decides when it ends), exits at once when
 the master's liveliness token disappears, and exits with status 3 when no
@@ -42,7 +44,7 @@ from cosim.transport.inproc import (ParameterProblem, PythonComponentLaunch, con
 from cosim.engine.startup import process_age_s
 from cosim.transport.zenoh import auth, config
 from cosim.transport.zenoh.auth import Credential
-from cosim.transport.zenoh.codec import (CodecError, Kind, Layout, HEADER,
+from cosim.transport.zenoh.codec import (CodecError, Kind, Layout, HEADER, decode_json,
                                          encode_json, ports_to_json)
 
 MASTER_POLL_S = 0.1
@@ -130,6 +132,8 @@ class _Server:
             return encode_json(Kind.ERROR, seq, tick, t, {"cause": self.build_error}), True
         if kind == Kind.START:
             return self._step(kind, seq, tick, t, data), False
+        if kind == Kind.USE:
+            return self._use(seq, data), False
         if kind == Kind.STOP:
             return self._stop(seq, tick, t), True
         return None, False
@@ -142,6 +146,7 @@ class _Server:
         return encode_json(Kind.PORTS, seq, -1, 0.0, {
             "inputs": ports_to_json(self.component.inputs),
             "outputs": ports_to_json(self.component.outputs), "pid": os.getpid(),
+            "uses_outputs": type(self.component).use_outputs is not Component.use_outputs,
             "startup_s": {**self.ages, "ready": process_age_s(), "cpu": time.process_time()}})
 
     def _step(self, kind: int, seq: int, tick: int, t: float, data: bytes) -> bytes:
@@ -161,6 +166,15 @@ class _Server:
             return self.out_layout.encode(Kind.OUTPUTS, seq, tick, t, outputs, finite=True)
         except CodecError as exc:
             return encode_json(Kind.ERROR, seq, tick, t, {"cause": str(exc)})
+
+    def _use(self, seq: int, data: bytes) -> bytes:
+        assert self.component is not None
+        try:
+            self.component.use_outputs(frozenset(decode_json(data)["outputs"]))
+        except Exception as exc:
+            cause = f"use_outputs() failed: {describe_exception(exc)}"
+            return encode_json(Kind.ERROR, seq, -1, 0.0, {"cause": cause})
+        return encode_json(Kind.USED, seq, -1, 0.0, {})
 
     def _stop(self, seq: int, tick: int, t: float) -> bytes:
         assert self.component is not None

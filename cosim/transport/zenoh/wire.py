@@ -22,10 +22,12 @@ class Kind:
     START = 2      # master -> component: initialize(t0, inputs)
     STEP = 3       # master -> component: step(t, inputs)
     STOP = 4       # master -> component: finish() and exit
+    USE = 5        # master -> component: JSON {"outputs"}: use_outputs(outputs), before START
     PORTS = 11     # component -> master: JSON port declarations
     OUTPUTS = 12   # component -> master: packed outputs
     METRICS = 13   # component -> master: JSON final metrics
     ERROR = 14     # component -> master: JSON {"cause": text}
+    USED = 15      # component -> master: JSON {} once use_outputs returned
     DIED = 21      # master watchdog -> master: JSON {"component", "cause"}
     TIMEOUT = 22   # master watchdog -> master: JSON {"component", "cause"}
     LIVE = 31      # master -> watchers: packed signal vector of one tick
