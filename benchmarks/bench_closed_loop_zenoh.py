@@ -280,6 +280,10 @@ def main() -> None:
         if netns_figures:
             figures["netns"] = netns_figures
     rows = [row for where, f in figures.items() if where != "breakdown" for row in table_rows(where, f)]
+    if "breakdown" in figures:
+        from benchmarks import zenoh_breakdown
+
+        rows += zenoh_breakdown.table_rows(figures["breakdown"])
     emit_results("bench_closed_loop_zenoh", {**figures, "seconds": args.seconds, "repeats": args.repeats,
                                              "load": f"{before} -> {load_average()}"}, rows)
 

@@ -74,8 +74,9 @@ def _timed(step: Callable, durations: list[float], clock: Callable[[], float]) -
 
 
 def inproc_steps(prepared, make_master) -> tuple[dict[str, list[float]], float]:
-    """One in-process loop: each Python component's step durations (thread CPU seconds), and
-    the wall seconds per tick of the whole loop."""
+    """One in-process loop: each Python component's step durations, and the seconds per tick
+    of the whole loop (thread CPU time: one thread does it all, and CPU time is what the
+    machine's load disturbs least)."""
     from cosim.transport.inproc import InprocComponent
 
     hosts = {launch.name: InprocComponent(launch) for launch in prepared.launches}
@@ -85,10 +86,10 @@ def inproc_steps(prepared, make_master) -> tuple[dict[str, list[float]], float]:
     master = make_master(prepared, hosts)
     try:
         master.initialize()
-        start = time.perf_counter()
+        start = time.thread_time()
         for k in range(1, master.total_ticks + 1):
             master.step_tick(k)
-        tick = (time.perf_counter() - start) / master.total_ticks
+        tick = (time.thread_time() - start) / master.total_ticks
     finally:
         master.stop_all()
     return durations, tick
@@ -135,6 +136,29 @@ def raw_cpu(pair, count: int, busy_s: float = 0.0) -> tuple[float, dict[str, dic
              for name in pids}
     split["this process"][KINDS[0]] -= busy_s
     return median, split
+
+
+def table_rows(figures: dict[str, Any]) -> list[dict]:
+    """The performance-table rows of the breakdown (figures, no target: they explain the ratio)."""
+    from benchmarks.common import table_row
+
+    parts = "; ".join(
+        f"{name} {c['exchange']:.0f} µs per step ({c['steps']} steps) = in-process step "
+        f"{c['inproc step']:.0f} + raw round trip {figures['raw round trip median']:.0f} + "
+        f"{c['beyond']:.0f} beyond, {c['per tick']:.0f} µs per tick"
+        for name, c in figures["components"].items())
+    cpu = "; ".join(f"{name} " + " + ".join(f"{split[kind]:.0f}" for kind in KINDS[:2])
+                    for name, split in figures["cpu"].items())
+    busy = figures["raw round trip after a busy tick median"]
+    ratio = figures["ratio to floor, round trip after a busy tick"]
+    return [table_row("Zenoh tick, where it goes (one run with timers): each exchange seen from the master",
+                      parts, "-", None),
+            table_row("Zenoh tick: CPU µs per tick (per raw round trip for raw:), main thread + Zenoh "
+                      "runtime threads", cpu, "-", None),
+            table_row("Zenoh tick / (in-process tick + raw round trip with the requester busy one "
+                      "in-process tick between round trips)",
+                      f"{figures['zenoh tick']:.0f} µs vs {figures['inproc tick']:.0f} + {busy:.0f} µs: "
+                      f"{ratio:.2f}", "-", None)]
 
 
 def report(prepared, make_master, pair, raw_count: int) -> dict[str, Any]:
