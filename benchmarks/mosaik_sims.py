@@ -8,7 +8,11 @@ tick (time_resolution = the scenario's tick); mosaik time 0 is our
 initialization phase (`start`), time k our tick k (`step`), t = t0 + k * tick
 computed as the master does. Inputs are held between deliveries (our signal
 store's zero-order hold); array outputs travel as lists when the simulator is
-its own process (mosaik's JSON), as arrays in-process.
+its own process (mosaik's JSON), as arrays in-process. With `marks_to`, each
+simulator writes `<marks_to>/<name>.json` at the end: the clock (`time.perf_counter`,
+the system's monotonic clock, the same in every process) when its first step after
+time 0 began and when its last step ended, so the benchmark can time ticks 1..N alone
+as it does ours.
 
 Run as `python -m benchmarks.mosaik_sims ADDR` for mosaik's one-process-per-
 simulator mode (mosaik starts it with "cmd").
@@ -16,7 +20,9 @@ simulator mode (mosaik starts it with "cmd").
 
 from __future__ import annotations
 
+import json
 import sys
+import time
 from pathlib import Path
 
 import mosaik_api_v3
@@ -47,9 +53,11 @@ class CosimSim(mosaik_api_v3.Simulator):
     def __init__(self) -> None:
         super().__init__({"type": "time-based", "models": {}})
         self.trajectory: list[tuple[float, ...]] = []
+        self.loop_start: float | None = None  # clock when the first step after time 0 began
+        self.loop_end: float | None = None    # clock when the last step ended
 
     def init(self, sid, time_resolution=1.0, scenario="", overrides=(), name="", as_lists=False,
-             record=(), record_to="", reads=None):
+             record=(), record_to="", reads=None, marks_to=""):
         prepared, self.host = _host(scenario, list(overrides), name)
         if reads is not None and hasattr(self.host, "use_outputs"):
             self.host.use_outputs(set(reads))  # what our master tells it: the same work on both sides
@@ -58,6 +66,7 @@ class CosimSim(mosaik_api_v3.Simulator):
         self.t0, self.tick = start_time(prepared.scenario, prepared.fmus), prepared.scenario.tick
         self.period = int(self.host.period_ticks)
         self.as_lists, self.record, self.record_to = as_lists, list(record), record_to
+        self.name, self.marks_to = name, marks_to
         self.held = {p.name: p.zero() for p in self.host.inputs}
         self.array_inputs = {p.name for p in self.host.inputs if p.size > 1}
         self.outputs: dict = {}
@@ -69,6 +78,8 @@ class CosimSim(mosaik_api_v3.Simulator):
         return [{"eid": "c", "type": model}]
 
     def step(self, time, inputs, max_advance):
+        if time >= 1 and self.loop_start is None:
+            self.loop_start = _clock()
         for attr, by_source in inputs.get("c", {}).items():
             value = next(iter(by_source.values()))
             self.held[attr] = (np.asarray(value, dtype=np.float64) if attr in self.array_inputs
@@ -80,6 +91,7 @@ class CosimSim(mosaik_api_v3.Simulator):
             self.outputs = self.host.step(time, t, dict(self.held))
         if self.record:
             self.trajectory.append(tuple(float(self.outputs[n]) for n in self.record))
+        self.loop_end = _clock()
         return time + self.period
 
     def get_data(self, outputs):
@@ -93,6 +105,12 @@ class CosimSim(mosaik_api_v3.Simulator):
         self.host.stop()
         if self.record_to:
             np.save(self.record_to, np.array(self.trajectory, dtype=np.float64))
+        if self.marks_to:
+            marks = {"loop_start": self.loop_start, "loop_end": self.loop_end}
+            (Path(self.marks_to) / f"{self.name}.json").write_text(json.dumps(marks))
+
+
+_clock = time.perf_counter  # `step`'s argument `time` shadows the module
 
 
 if __name__ == "__main__":

@@ -39,9 +39,12 @@ import numpy as np
 from cosim.errors import ComponentFailure, StopRequested
 from cosim.engine.crumb import CALL_START, CALL_STEP, CALL_STOP, crumb_code
 from cosim.engine.hosting import HostedComponent
+from cosim.engine.movers import FrozenArrays, input_builder, output_reader
 from cosim.engine.schedule import step_order
 from cosim.engine.signals import ComponentSlots, SignalLayout, build_layout, transformed
 from cosim.engine.values import picker, value_problem
+
+_add_reduce = np.add.reduce
 
 
 class Observer(Protocol):
@@ -62,8 +65,7 @@ class _Plan:
     hosted: HostedComponent
     period: int
     slots: ComponentSlots
-    pick_inputs: Callable[[Any], tuple]   # values list -> scalar inputs in name order
-    pick_outputs: Callable[[Any], tuple]  # outputs mapping -> scalar outputs in slot order
+    pick_inputs: Callable[[Any], tuple]   # values list -> scalar inputs in name order (values lane)
     out_start: int
     out_stop: int
     index: int = 0  # position in step order, for the breadcrumb
@@ -71,8 +73,11 @@ class _Plan:
     def __post_init__(self) -> None:
         self.crumb_step = crumb_code(self.index, CALL_STEP)
         self.step = self.hosted.step
-        self.in_names = self.slots.in_scalar_names
-        self.has_array_inputs = bool(self.slots.in_arrays)
+        # (values, frozen arrays) -> the inputs mapping; outputs mapping -> scalar outputs as floats
+        self.build_inputs = input_builder(
+            list(zip(self.slots.in_scalar_names, self.slots.in_scalar_index)),
+            [(name, off) for name, off, _ in self.slots.in_arrays])
+        self.read_outputs = output_reader(self.slots.out_scalar_names)
         self.has_array_outputs = bool(self.slots.out_arrays)
         self.transforms = self.slots.transforms  # empty unless an input edge has scale/offset
         self.step_values = _values_lane(self.hosted, self.slots)
@@ -118,11 +123,14 @@ class Master:
         self.arrays: np.ndarray = self.layout.initial_arrays.copy()
         # read-only array objects by offset in `arrays`, handed to readers without a
         # copy: a new object is made each time the owner writes, never mutated
-        self._frozen: dict[int, np.ndarray] = {}
         self.ticks_done = -1  # last completed tick; -1 before initialization
         self.crumb = crumb if crumb is not None else memoryview(bytearray(8)).cast("q")
         self.stop_request: StopRequested | None = None  # a component asked to end the run
         self._plans = [self._plan(i, name) for i, name in enumerate(self.order)]
+        self._frozen = FrozenArrays(
+            self.arrays,
+            {off: size for slots in self.layout.slots.values() for _, off, size in slots.in_arrays},
+            [span for plan in self._plans for span in plan.out_block])
         self._scalar_delays = self.layout.scalar_delays
         self._array_delays = self.layout.array_delays
         self._delayed_transforms = self.layout.delayed_transforms
@@ -138,8 +146,7 @@ class Master:
             raise ValueError(f"component {name!r}: period_ticks must be >= 1, got {period}")
         slots = self.layout.slots[name]
         start = slots.out_scalar_start
-        return _Plan(name, comp, period, slots, picker(slots.in_scalar_index),
-                     picker(slots.out_scalar_names), start,
+        return _Plan(name, comp, period, slots, picker(slots.in_scalar_index), start,
                      start + len(slots.out_scalar_names), index)
 
     def value(self, component: str, signal: str) -> Any:
@@ -238,9 +245,7 @@ class Master:
 
     def _step_on_mapping(self, plan: _Plan, k: int, t: float, values: list[float]) -> None:
         """One step through the host's `step`: inputs as a mapping, outputs checked and stored."""
-        inputs = dict(zip(plan.in_names, plan.pick_inputs(values)))
-        if plan.has_array_inputs:
-            self._gather_arrays(plan, inputs)
+        inputs = plan.build_inputs(values, self._frozen)
         if self.trace is not None:
             self.trace.append((k, plan.name, _copy_inputs(inputs)))
         try:
@@ -248,7 +253,7 @@ class Master:
         except StopRequested as request:  # the tick completes; `run` ends after it
             self.stop_request, outputs = request, request.outputs
         try:
-            new = list(map(float, plan.pick_outputs(outputs)))
+            new = plan.read_outputs(outputs)
         except Exception:  # missing name, not a mapping, not a number: diagnose
             raise _diagnose(plan, outputs, k, t) from None
         if not _isfinite(sum(new)) and not all(map(_isfinite, new)):
@@ -274,22 +279,12 @@ class Master:
     def _gather(self, plan: _Plan) -> dict[str, Any]:
         """The inputs of one component as a fresh mapping (floats, read-only arrays)."""
         _apply_transforms(plan.transforms, self.values)
-        inputs: dict[str, Any] = dict(zip(plan.in_names, plan.pick_inputs(self.values)))
-        self._gather_arrays(plan, inputs)
-        return inputs
-
-    def _gather_arrays(self, plan: _Plan, inputs: dict[str, Any]) -> None:
-        frozen = self._frozen
-        for name, off, size in plan.slots.in_arrays:
-            value = frozen.get(off)
-            if value is None:  # a default or delay slot nobody has written yet
-                value = frozen[off] = _freeze(self.arrays[off:off + size])
-            inputs[name] = value
+        return plan.build_inputs(self.values, self._frozen)
 
     def _scatter(self, plan: _Plan, outputs: Any, k: int | None, t: float) -> None:
         """Check a component's outputs and write them into the store."""
         try:
-            values = list(map(float, plan.pick_outputs(outputs)))
+            values = plan.read_outputs(outputs)
         except Exception:  # missing name, not a mapping, not a number: diagnose
             raise _diagnose(plan, outputs, k, t) from None
         if not all(map(_isfinite, values)):
@@ -301,7 +296,7 @@ class Master:
         """Write a component's array outputs straight into the store, then test them once.
 
         The read-only copies readers get are made when a reader gathers them
-        (`_gather_arrays`); a rejected output fails the run (the store is not read again).
+        (`FrozenArrays`); a rejected output fails the run (the store is not read again).
         """
         arrays, frozen = self.arrays, self._frozen
         for name, off, size in plan.slots.out_arrays:
@@ -313,8 +308,10 @@ class Master:
             except Exception:
                 raise _diagnose(plan, outputs, k, t) from None
             frozen.pop(off, None)
-        if not all(np.isfinite(arrays[start:stop]).all() for start, stop in plan.out_block):
-            raise _diagnose(plan, outputs, k, t)
+        for start, stop in plan.out_block:  # one sum per block; each element only if it is not finite
+            block = arrays[start:stop]
+            if not _isfinite(_add_reduce(block)) and not np.isfinite(block).all():
+                raise _diagnose(plan, outputs, k, t)
 
     def stop_all(self) -> tuple[dict[str, dict[str, float]], list[str]]:
         """Stop every started component (reverse step order), even after a failure.
@@ -373,13 +370,6 @@ def _apply_transforms(transforms: Sequence[tuple], values: list[float]) -> None:
     """Write each transformed input slot from its source slot (see signals.Transform)."""
     for src, dst, scale, offset in transforms:
         values[dst] = transformed(values[src], scale, offset)
-
-
-def _freeze(value: Any) -> np.ndarray:
-    """A read-only float64 copy of `value`."""
-    array = np.array(value, dtype=np.float64)
-    array.flags.writeable = False
-    return array
 
 
 def _copy_inputs(inputs: Mapping[str, Any]) -> dict[str, Any]:

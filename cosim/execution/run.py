@@ -59,6 +59,9 @@ class RunResult:
     stopped_by: dict[str, Any] | None = None  # {"component", "tick", "time", "reason"}
     # with record.every > 1: (columns, every tick's row) for the metrics; else None
     full_signals: tuple[list[str], Any] | None = None
+    # wall time of ticks 1..N alone (wall_time_s also counts tick 0, the initialization
+    # phase); None when tick 0 was not completed
+    loop_time_s: float | None = None
 
     @property
     def signals(self) -> Path:
@@ -382,12 +385,19 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
     write_json(out / "manifest.json", manifest)
     failure: BaseException | None = None
     started = time.perf_counter()
+    loop_started: list[float] = []  # when tick 0 was complete
+
+    def tick0_done() -> None:
+        clock.mark("tick0")
+        loop_started.append(time.perf_counter())
+
     try:
-        master.run(after_initialize=lambda: clock.mark("tick0"))
+        master.run(after_initialize=tick0_done)
     except BaseException as exc:  # recorded below; bugs are re-raised after the files
         failure = exc
     finally:
-        wall = time.perf_counter() - started
+        ended = time.perf_counter()
+        wall = ended - started
         try:
             recorder.close()
         except UserError as exc:  # the run folder cannot be written (RunFolderError)
@@ -408,7 +418,8 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
                        (ticks * scenario.tick / wall) if wall > 0 else float("inf"),
                        metrics, pacer.stats() if pacer else None,
                        clock.marks.get("tick0"), clock.as_dict(), live,
-                       _stopped_by(master.stop_request), recorder.full_signals)
+                       _stopped_by(master.stop_request), recorder.full_signals,
+                       ended - loop_started[0] if loop_started else None)
     write_json_in_place(out / "manifest.json", finish_manifest(manifest, result, failure))
     if options.page is not None:
         options.page.done()

@@ -200,3 +200,14 @@ def test_live_observer_builds_vectors_only_while_watched():
 
 def test_describe_exception_is_public_and_one_line():
     assert describe_exception(ZeroDivisionError("x by zero")) == "ZeroDivisionError: x by zero"
+
+
+def test_loop_time_is_the_part_of_the_run_after_tick0(tmp_path):
+    from cosim.execution.run import run_scenario
+
+    result = run_scenario(load_scenario(_scenario(tmp_path, GOOD)), tmp_path / "ok", progress=False)
+    assert result.status == "ok" and 0 < result.loop_time_s <= result.wall_time_s
+    failing = GOOD.replace("{k: 3.0}", "{k: 3.0, raise_at: 0.0}")  # fails in the initialization
+    result = run_scenario(load_scenario(_scenario(tmp_path, failing)), tmp_path / "failed",
+                          progress=False)
+    assert result.status == "failed" and result.ticks == 0 and result.loop_time_s is None

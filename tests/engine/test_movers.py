@@ -1,0 +1,46 @@
+"""The master's generated movers and its read-only array copies (cosim.engine.movers)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosim.engine.movers import FrozenArrays, input_builder, output_reader
+
+
+def test_inputs_are_a_fresh_dict_scalars_first_in_slot_order_then_arrays():
+    arrays = np.arange(6, dtype=np.float64)
+    frozen = FrozenArrays(arrays, {2: 3})
+    build = input_builder([("b", 2), ("a", 0), ("it's", 1)], [("ref", 2)])
+    values = [10.0, 11.0, 12.0]
+    first, second = build(values, frozen), build(values, frozen)
+    assert list(first) == ["b", "a", "it's", "ref"]
+    assert (first["b"], first["a"], first["it's"]) == (12.0, 10.0, 11.0)
+    assert first is not second and first["ref"] is second["ref"]  # one copy, shared
+    assert first["ref"].tolist() == [2.0, 3.0, 4.0] and not first["ref"].flags.writeable
+    assert input_builder([], [])(values, frozen) == {}
+
+
+def test_outputs_are_read_as_floats_in_order_and_bad_ones_raise():
+    read = output_reader(["y", "x"])
+    assert read({"x": 1, "y": np.float64(2.5), "z": 0.0}) == [2.5, 1.0]
+    assert all(type(v) is float for v in read({"x": 1, "y": True}))
+    assert output_reader([])({}) == []
+    for bad in ({"x": 1.0}, [1.0, 2.0], {"x": 1.0, "y": "two"}):
+        with pytest.raises((KeyError, TypeError, ValueError)):
+            read(bad)
+
+
+def test_a_block_is_copied_once_and_each_reader_gets_a_read_only_view():
+    arrays = np.arange(10, dtype=np.float64)
+    frozen = FrozenArrays(arrays, {0: 2, 2: 3, 7: 2}, blocks=[(0, 5)])
+    first = frozen[2]
+    assert first.tolist() == [2.0, 3.0, 4.0] and not first.flags.writeable
+    assert 0 in frozen and frozen[0].base is first.base  # the block's other slot, same copy
+    assert frozen[7].tolist() == [7.0, 8.0]  # outside any block: a copy of its own
+    with pytest.raises(ValueError):
+        first[0] = 1.0
+    arrays[0:5] = -1.0  # the owner writes: the copies it held are dropped, new ones made on read
+    assert first.tolist() == [2.0, 3.0, 4.0]
+    frozen.pop(0), frozen.pop(2)
+    assert frozen[0].tolist() == [-1.0, -1.0] and frozen[2].tolist() == [-1.0] * 3
