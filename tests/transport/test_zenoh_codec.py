@@ -86,6 +86,29 @@ def test_a_writeable_array_changed_in_place_is_sent_again():
     assert decoded["b"].tolist() == [1.0, 7.0, 3.0]
 
 
+def test_a_read_only_view_of_a_writeable_array_changed_through_its_base_is_sent_again():
+    sender, receiver = Layout(PORTS), Layout(PORTS)
+    base = np.array([1.0, 2.0, 3.0, 9.0])
+    view = base[:3]
+    view.flags.writeable = False  # read-only, but its owner can still write
+    receiver.decode(sender.encode(Kind.STEP, 1, 1, 0.0, {"a": 0.0, "b": view, "c": 0.0, "d": [0, 0]}))
+    base[1] = 7.0
+    decoded = receiver.decode(sender.encode(Kind.STEP, 2, 2, 0.0, {"a": 0.0, "b": view, "c": 0.0,
+                                                                   "d": [0, 0]}))
+    assert decoded["b"].tolist() == [1.0, 7.0, 3.0]
+
+
+def test_a_view_of_a_read_only_copy_is_held_by_identity():
+    sender, receiver = Layout(PORTS), Layout(PORTS)
+    block = _frozen([1.0, 2.0, 3.0, 4.0, 5.0])
+    b, d = block[:3], block[3:]   # as the master hands out one component's array block
+    first = receiver.decode(sender.encode(Kind.STEP, 1, 1, 0.0, {"a": 0.0, "b": b, "c": 0.0, "d": d}))
+    message = sender.encode(Kind.STEP, 2, 2, 0.0, {"a": 0.0, "b": b, "c": 0.0, "d": d})
+    assert message[HEADER.size:HEADER.size + 2] == bytes([0, 0])
+    second = receiver.decode(message)
+    assert second["b"] is first["b"] and second["d"].tolist() == [4.0, 5.0]
+
+
 def test_forget_sends_and_expects_every_array_afresh():
     sender, receiver = Layout(PORTS), Layout(PORTS)
     values = {"a": 0.0, "b": _frozen([1, 2, 3]), "c": 0.0, "d": _frozen([4, 5])}

@@ -173,9 +173,13 @@ class Layout:
 
 
 def _frozen(value: Any) -> bool:
-    """A read-only float64 array owning its data: nobody can change its bytes in place."""
-    return (isinstance(value, np.ndarray) and not value.flags.writeable and value.flags.owndata
-            and value.dtype == np.float64)
+    """A read-only float64 array owning its data, or a read-only view of one (the master hands
+    out views of one copy of a component's array block): nobody can change its bytes in place."""
+    if not isinstance(value, np.ndarray) or value.flags.writeable or value.dtype != np.float64:
+        return False
+    base = value.base
+    return value.flags.owndata or (isinstance(base, np.ndarray) and base.flags.owndata
+                                   and not base.flags.writeable)
 
 
 def ports_to_json(ports: Sequence[Port]) -> list[dict[str, Any]]:
