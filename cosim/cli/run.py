@@ -16,8 +16,6 @@ from pathlib import Path
 from typing import Any, Optional
 
 import typer
-from rich.console import Console
-from rich.markup import escape
 
 from cosim.cli import interrupts
 from cosim.cli.common import STRICT_HELP, print_warning, user_error_exit
@@ -173,6 +171,9 @@ def _interrupted_exit(stop_error: str | None = None) -> typer.Exit:
     Args:
         stop_error: an error raised while the interrupted start-up was undone.
     """
+    from rich.console import Console
+    from rich.markup import escape
+
     from cosim.execution.abort import INTERRUPTED_BEFORE_TICK0
 
     note = f" (then, while stopping: {stop_error})" if stop_error else ""
@@ -248,6 +249,9 @@ def _finish_run(result: Any, figures: bool, mcap: bool = False) -> None:
         print(f"stopped by component {stopped['component']!r} at tick {stopped['tick']} "
               f"(t={stopped['time']:.10g} s): {stopped['reason']}")
     if result.status != "ok":
+        from rich.console import Console
+        from rich.markup import escape
+
         Console(stderr=True, highlight=False, soft_wrap=True).print(
             f"[red]run failed:[/red] {escape(str(result.error))}", markup=True)
         raise typer.Exit(EXIT_FAILED_RUN)
