@@ -11,6 +11,7 @@ import contextlib
 import sys
 import datetime
 import signal
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Optional
@@ -103,9 +104,11 @@ def run(
     if supervise and interrupts.is_cosim_command():  # not under a test's in-process CLI
         from cosim.execution.supervisor import fork_supervisor
 
+        cpu_before_fork = time.process_time()
         status = fork_supervisor()
         if status is not None:  # the supervisor: the master has ended
             raise typer.Exit(status)
+        clock.after_fork(cpu_before_fork)  # the master's CPU time counts the parsing too
     early = None
     try:
         if prestart and transport == "zenoh" and not (place or listen or connect or deploy):
