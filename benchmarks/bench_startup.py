@@ -7,7 +7,8 @@ zero: the start of the `cosim run` process, from /proc, 10 ms resolution).
 Transports alternate run by run, so machine load weighs on both alike. Also
 measures, as floors for context, a bare interpreter start and `import numpy`
 (which every component process needs), and prints the CPU time each process
-used before tick 0, which does not depend on the machine's load. Bytecode is
+used before tick 0, which does not depend on the machine's load (the master's
+includes the command-line parsing before `cosim run` forks it off its supervisor). Bytecode is
 cached as in a normal installation (in a temporary PYTHONPYCACHEPREFIX; this
 sandbox sets PYTHONDONTWRITEBYTECODE=1). DESIGN.md target: under 1 s over Zenoh.
 

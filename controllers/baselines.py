@@ -31,12 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-from pydantic import BaseModel, Field
-
-from cosim.component import Component, ComponentError, Port, Value
-from controllers.parameter_fields import (PARAMETERS_CONFIG, FirstPeriod, FrontArm, Mass,
-                                          MaxDelta, MaxDeltaRate, MaxTorque, MinTorque, Preview,
-                                          RearArm, SpeedKi, SpeedKp, WheelInertia, WheelRadius)
+from cosim.component import Component, ComponentError, ModelReference, Port, Value
 from controllers.tracking import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits,
                                         InputReader, SpeedPI, SteeringLimiter, StepClock,
                                         empty_window_outputs, finite_outputs, path_errors)
@@ -45,58 +40,6 @@ from controllers.road.projection import PreparedWindow, foot, point_at, wrap_ang
 
 OUTPUT_NAMES: tuple[str, ...] = tuple(port.name for port in COMMAND_OUTPUTS)
 SLOT = 2      # the PreparedWindow tracking slot of the steering law's own projection point
-
-
-# ---- the scenario parameters of each class (its parameters_model; a test holds the
-# fields and defaults equal to the constructor's keyword arguments)
-
-class _Wheels(BaseModel):
-    """The nominal vehicle of the speed loop's feed-forward."""
-
-    model_config = PARAMETERS_CONFIG
-    m: Mass = 1500.0
-    iy: WheelInertia = 1.2
-    Rw: WheelRadius = 0.3
-
-
-class _SpeedLoop(BaseModel):
-    """The PI speed loop on torque, its limits and the first step."""
-
-    model_config = PARAMETERS_CONFIG
-    kp: SpeedKp = 3000.0
-    ki: SpeedKi = 600.0
-    max_torque: MaxTorque = 3000.0
-    min_torque: MinTorque = -6000.0
-    period: FirstPeriod = 0.01
-
-
-class SpeedLoopParameters(_SpeedLoop, _Wheels):
-    """Parameters of controllers.baselines:SpeedLoop (PI on torque for a scripted speed)."""
-
-
-class _Tracking(_Wheels):
-    """The geometry both path-tracking baselines take, and their steering limits."""
-
-    lf: FrontArm = 1.006
-    lr: RearArm = 1.462
-    ls: Preview = 5.0
-    max_delta: MaxDelta = 0.5
-    max_delta_rate: MaxDeltaRate = 1.0
-
-
-class PurePursuitParameters(_SpeedLoop, _Tracking):
-    """Parameters of controllers.baselines:PurePursuitController."""
-
-    ld_min: float = Field(4.0, gt=0, description="smallest look-ahead distance, m")
-    ld_gain: float = Field(0.6, ge=0, description="look-ahead distance per unit speed, s")
-
-
-class StanleyParameters(_SpeedLoop, _Tracking):
-    """Parameters of controllers.baselines:StanleyController."""
-
-    k_stanley: float = Field(1.0, gt=0, description="cross-track gain, 1/s")
-    k_soft: float = Field(1.0, gt=0, description="speed softening of the cross-track term, m/s")
-
 
 
 class _BaselineController(Component):
@@ -149,7 +92,7 @@ class PurePursuitController(_BaselineController):
         max_delta, max_delta_rate, max_torque, min_torque: actuator limits; period: first dt [s].
     """
 
-    parameters_model = PurePursuitParameters
+    parameters_model = ModelReference("controllers.baseline_parameters:PurePursuitParameters")
 
     def __init__(self, *, m: float = 1500.0, iy: float = 1.2, Rw: float = 0.3, lf: float = 1.006,
                  lr: float = 1.462, ls: float = 5.0, ld_min: float = 4.0, ld_gain: float = 0.6,
@@ -186,7 +129,7 @@ class StanleyController(_BaselineController):
         max_delta, max_delta_rate, max_torque, min_torque: actuator limits; period: first dt [s].
     """
 
-    parameters_model = StanleyParameters
+    parameters_model = ModelReference("controllers.baseline_parameters:StanleyParameters")
 
     def __init__(self, *, m: float = 1500.0, iy: float = 1.2, Rw: float = 0.3, lf: float = 1.006,
                  lr: float = 1.462, ls: float = 5.0, k_stanley: float = 1.0, k_soft: float = 1.0,
@@ -221,7 +164,7 @@ class SpeedLoop(Component):
     outputs = (Port("torque", unit="N.m", description="total wheel torque command"),
                Port("ex", unit="m/s", description="speed error vx - v_ref"))
     default_period = 0.01
-    parameters_model = SpeedLoopParameters
+    parameters_model = ModelReference("controllers.baseline_parameters:SpeedLoopParameters")
 
     def __init__(self, *, m: float = 1500.0, iy: float = 1.2, Rw: float = 0.3, kp: float = 3000.0,
                  ki: float = 600.0, max_torque: float = 3000.0, min_torque: float = -6000.0,

@@ -39,9 +39,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from cosim.component import Component, ComponentError, Port, Value
+from cosim.component import Component, ComponentError, ModelReference, Port, Value
 from controllers.backstepping.lateral import AdaptationSettings, LateralGains, ScalarLateralLaw
-from controllers.backstepping.parameters import BacksteppingParameters
 from controllers.tracking import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits,
                                         InputReader, SteeringLimiter, StepClock,
                                         empty_window_outputs, finite_outputs, path_errors)
@@ -97,7 +96,7 @@ class BacksteppingController(Component):
     inputs = CONTROLLER_INPUTS
     outputs = BACKSTEPPING_OUTPUTS
     default_period = 0.01
-    parameters_model = BacksteppingParameters
+    parameters_model = ModelReference("controllers.backstepping.parameters:BacksteppingParameters")
 
     def __init__(self, *, m: float = 1500.0, Iz: float = 2454.0, Cf: float = 57500.0,
                  Cr: float = 57500.0, lf: float = 1.006, lr: float = 1.462, iy: float = 1.2,

@@ -52,10 +52,9 @@ from collections.abc import Mapping, Set
 
 import numpy as np
 
-from cosim.component import Component, ComponentError, Port, Value
+from cosim.component import Component, ComponentError, ModelReference, Port, Value
 from controllers.road.geometry import SpecError, spec_number
 from controllers.planning.following import FOLLOWING_OUTPUTS, LEAD_INPUTS, Follower
-from controllers.planning.parameters import PlannerParameters
 from controllers.spec import MAX_LENGTH, MAX_REACH
 from controllers.planning.manoeuvres import (LateralPlan, ManoeuvrePlan, Option, Transition, offset_profile,
                                    plan_manoeuvre, transition_length)
@@ -168,7 +167,7 @@ class Planner(Component):
     """Trajectory planner: recommended and alternative windows from road + manoeuvre."""
 
     default_period = 0.1
-    parameters_model = PlannerParameters
+    parameters_model = ModelReference("controllers.planning.parameters:PlannerParameters")
     inputs = (Port("x", unit="m", description="vehicle CG world x"),
               Port("y", unit="m", description="vehicle CG world y"),
               Port("psi", unit="rad", description="vehicle yaw angle"),

@@ -22,9 +22,6 @@ from pathlib import Path
 from typing import Optional
 
 import typer
-from rich.console import Console
-from rich.markup import escape
-from rich.table import Table
 
 from cosim.cli.common import user_error_exit as _fail
 from cosim.errors import UserError
@@ -112,6 +109,10 @@ def compare(run_dirs: list[Path] = typer.Argument(
 
 
 def _print_summary(result) -> None:
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
     from cosim.execution.sweep import STATS
 
     table = Table(title=f"sweep: {len(result.samples)} samples, {len(result.failures)} failed")
@@ -164,6 +165,8 @@ def sweep(scenario: str = typer.Argument(..., help="scenario YAML file, or a shi
         typer.echo(f"figure: {draw_sweep_histograms(result)}")
     typer.echo(f"results: {result.out_dir}")
     if result.failures:  # the sweep is a failure unless every sample ran
+        from rich.console import Console
+
         failed = ", ".join(str(f.index) for f in result.failures)
         Console(stderr=True, highlight=False, soft_wrap=True).print(
             f"[red]sweep failed:[/red] {len(result.failures)} of {len(result.samples)} samples "

@@ -10,7 +10,6 @@ from __future__ import annotations
 import re
 
 import typer
-from rich.console import Console
 
 from cosim.errors import UserError
 
@@ -25,6 +24,8 @@ def print_warning(text: str) -> None:
     Args:
         text: the warning; printed as is (no markup read from it).
     """
+    from rich.console import Console  # rich loads in 0.05 s: not before a run needs it
+
     console = Console(stderr=True, highlight=False, soft_wrap=True)
     console.print("[yellow]warning:[/yellow] ", markup=True, end="")
     console.print(text, markup=False)
@@ -36,6 +37,8 @@ def user_error_exit(error: UserError) -> typer.Exit:
     Args:
         error: the error; its text is printed as is (no markup read from it).
     """
+    from rich.console import Console
+
     console = Console(stderr=True, highlight=False, soft_wrap=True)
     console.print("[red]error:[/red] ", markup=True, end="")
     console.print(str(error), markup=False)

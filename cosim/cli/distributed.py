@@ -13,8 +13,6 @@ from pathlib import Path
 from typing import Any, Optional
 
 import typer
-from rich.console import Console
-from rich.table import Table
 
 from cosim.cli.common import check_endpoint, user_error_exit
 from cosim.errors import UserError
@@ -96,6 +94,9 @@ def workers(
     timeout: float = typer.Option(1.0, "--timeout", help="seconds to look for workers"),
 ) -> None:
     """List the workers that can be reached."""
+    from rich.console import Console
+    from rich.table import Table
+
     from cosim.distributed.client import list_workers
 
     try:

@@ -11,13 +11,12 @@ import contextlib
 import sys
 import datetime
 import signal
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Optional
 
 import typer
-from rich.console import Console
-from rich.markup import escape
 
 from cosim.cli import interrupts
 from cosim.cli.common import STRICT_HELP, print_warning, user_error_exit
@@ -105,9 +104,11 @@ def run(
     if supervise and interrupts.is_cosim_command():  # not under a test's in-process CLI
         from cosim.execution.supervisor import fork_supervisor
 
+        cpu_before_fork = time.process_time()
         status = fork_supervisor()
         if status is not None:  # the supervisor: the master has ended
             raise typer.Exit(status)
+        clock.after_fork(cpu_before_fork)  # the master's CPU time counts the parsing too
     early = None
     try:
         if prestart and transport == "zenoh" and not (place or listen or connect or deploy):
@@ -173,6 +174,9 @@ def _interrupted_exit(stop_error: str | None = None) -> typer.Exit:
     Args:
         stop_error: an error raised while the interrupted start-up was undone.
     """
+    from rich.console import Console
+    from rich.markup import escape
+
     from cosim.execution.abort import INTERRUPTED_BEFORE_TICK0
 
     note = f" (then, while stopping: {stop_error})" if stop_error else ""
@@ -248,6 +252,9 @@ def _finish_run(result: Any, figures: bool, mcap: bool = False) -> None:
         print(f"stopped by component {stopped['component']!r} at tick {stopped['tick']} "
               f"(t={stopped['time']:.10g} s): {stopped['reason']}")
     if result.status != "ok":
+        from rich.console import Console
+        from rich.markup import escape
+
         Console(stderr=True, highlight=False, soft_wrap=True).print(
             f"[red]run failed:[/red] {escape(str(result.error))}", markup=True)
         raise typer.Exit(EXIT_FAILED_RUN)

@@ -4,7 +4,9 @@
 when known, else the moment the clock was made) and keeps named marks
 ("scenario_loaded", "spawned", "components_ready", "tick0"), with the CPU
 time the process had used at each (a load-independent view of the work),
-which the run writes into manifest.json. It imports nothing heavy, so component processes
+which the run writes into manifest.json. `cosim run` forks its master off a
+supervisor after parsing its command line: the master's CPU time then counts the
+work before the fork too (`after_fork`), so that it is the command's. It imports nothing heavy, so component processes
 use `process_age_s` too.
 """
 
@@ -49,6 +51,7 @@ class StartupClock:
         self.origin_kind = origin_kind
         self.marks: dict[str, float] = {}
         self.cpu: dict[str, float] = {}  # CPU seconds this process had used at each mark
+        self.cpu_before_fork = 0.0  # of the parent, when this process is a fork (after_fork)
 
     @classmethod
     def from_process_start(cls) -> "StartupClock":
@@ -87,8 +90,17 @@ class StartupClock:
         """
         seconds = (time.perf_counter() if at is None else at) - self.origin
         self.marks[name] = seconds
-        self.cpu[name] = time.process_time()
+        self.cpu[name] = self.cpu_before_fork + time.process_time()
         return seconds
+
+    def after_fork(self, parent_cpu_s: float) -> None:
+        """In the child of a fork: add the parent's CPU time before it to every later mark
+        (a forked process's own CPU time starts at zero).
+
+        Args:
+            parent_cpu_s: `time.process_time()` of the parent just before the fork.
+        """
+        self.cpu_before_fork = parent_cpu_s
 
     def as_dict(self) -> dict[str, object]:
         """The origin, the marks and the CPU time at each mark, for manifest.json."""

@@ -61,6 +61,33 @@ def test_clock_marks_are_seconds_since_its_origin():
     assert 0 < started.mark("now") < time.perf_counter()
 
 
+def test_a_forked_clock_counts_the_parent_cpu_time_before_the_fork():
+    clock = StartupClock(time.perf_counter(), "test origin")
+    clock.mark("before")
+    clock.after_fork(1000.0)  # as if the parent had used 1000 s of CPU before forking this one
+    clock.mark("after")
+    assert 1000.0 + clock.cpu["before"] <= clock.cpu["after"] <= 1000.0 + time.process_time()
+
+
+def test_component_processes_load_no_pydantic_for_the_shipped_classes():
+    code = ("import sys, cosim.transport.zenoh.runner, controllers.backstepping, controllers.planning, "
+            "controllers.baselines, cosim.sources\n"
+            "print(sorted(m for m in ('pydantic', 'rich', 'typer', 'yaml') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                         text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_a_model_reference_reads_as_the_parameters_model():
+    from controllers.backstepping import BacksteppingController
+    from controllers.backstepping.parameters import BacksteppingParameters
+    from controllers.baseline_parameters import SpeedLoopParameters
+    from controllers.baselines import SpeedLoop
+
+    assert BacksteppingController.parameters_model is BacksteppingParameters
+    assert SpeedLoop().parameters_model is SpeedLoopParameters
+
+
 def test_the_run_path_loads_no_numpy_or_fmpy_before_the_spawn():
     code = ("import sys, cosim.cli.app, cosim.execution.run, cosim.scenario.loader, cosim.distributed.placement, "
             "cosim.transport.zenoh.host, cosim.transport.zenoh.processes\n"
