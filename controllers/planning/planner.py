@@ -66,6 +66,8 @@ ROUTE_DS = 0.25        # m, reference grid the route is laid out on (window poin
 PROFILE_DS = 0.5       # m, arc-length grid of the speed profiles
 STATE_KEEP, STATE_CHANGING, STATE_STOPPING, STATE_HOLD = 0.0, 1.0, 2.0, 3.0
 HOLD_SPEED = 0.01      # m/s: below it, in the stop's final segment or past it, the vehicle is held
+_cumsum = np.add.accumulate     # np.cumsum of a 1-D array without its Python wrapper (every step)
+_WINDOW_KEYS: dict[str, tuple[str, ...]] = {}    # port names of a window per prefix, made once
 
 
 class RouteGrid:
@@ -95,11 +97,12 @@ class RouteGrid:
             profile: (d, dd/ds, d2d/ds2) at the grid points sl.
             sl: a contiguous slice of the grid.
         """
-        x, y, psi, kappa, g = frenet_from_base(tuple(b[sl] for b in self.base), *profile, self.s[sl],
+        x0, y0, psi0, k, dk = self.base
+        x, y, psi, kappa, g = frenet_from_base((x0[sl], y0[sl], psi0[sl], k[sl], dk[sl]), *profile, self.s[sl],
                                                trig=(self.trig[0][sl], self.trig[1][sl]))
         sigma = np.empty(g.size)
         sigma[0] = 0.0
-        np.cumsum(0.5 * ROUTE_DS * (g[1:] + g[:-1]), out=sigma[1:])
+        _cumsum(0.5 * ROUTE_DS * (g[1:] + g[:-1]), out=sigma[1:])
         return x, y, psi, kappa, sigma
 
 
@@ -153,7 +156,10 @@ class RoutePlan:
 
 def window_signals(prefix: str, *fields: np.ndarray) -> dict[str, np.ndarray]:
     """The port values of one window from its fields in controllers.trajectory.FIELDS order."""
-    return {f"{prefix}_{name}": value for (name, _, _), value in zip(FIELDS, fields)}
+    names = _WINDOW_KEYS.get(prefix)
+    if names is None:
+        names = _WINDOW_KEYS[prefix] = tuple(f"{prefix}_{name}" for name, _, _ in FIELDS)
+    return dict(zip(names, fields))
 
 
 def _read_only(value: np.ndarray) -> np.ndarray:
