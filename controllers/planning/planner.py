@@ -81,10 +81,11 @@ class RouteGrid:
         x, y, psi, k = road.reference.evaluate(self.s)
         self.base = (x, y, np.unwrap(psi), k, road.reference.dkappa(self.s))
         self.trig = (np.sin(self.base[2]), np.cos(self.base[2]))
+        self._s_first = float(self.s[0])
 
     def index(self, s: float) -> int:
         """Index of the last grid point at or before s."""
-        return int(np.floor((s - self.s[0]) / ROUTE_DS + 1e-9))
+        return math.floor((s - self._s_first) / ROUTE_DS + 1e-9)
 
     def trajectory(self, lateral: LateralPlan, sl: slice = slice(None)):
         """x, y, psi, kappa and own arc length (from the slice start) of a lateral plan."""
@@ -249,6 +250,7 @@ class Planner(Component):
             self.inputs, self.outputs = Planner.inputs + LEAD_INPUTS, Planner.outputs + FOLLOWING_OUTPUTS
         self.ref_route: RoutePlan | None = None
         self.alt_route: RoutePlan | None = None
+        self._alt_offset: float | None = None      # lateral offset of plan.alt_lane, looked up once
         self.holding = False
         self.alt_read = True  # False: nothing reads alt_* (use_outputs), the first window is held
         self._alt_held: dict[str, np.ndarray] | None = None
@@ -368,7 +370,9 @@ class Planner(Component):
             idx: the window's grid points; vx: vehicle speed, m/s.
             psi_shift: heading shift (2 pi k); d_now: recommended offset at the vehicle, m.
         """
-        d_to = self.road.lane_offset(self.plan.alt_lane)
+        d_to = self._alt_offset
+        if d_to is None:
+            d_to = self._alt_offset = self.road.lane_offset(self.plan.alt_lane)
         speed = min(max(vx, 3.0), self.limits.v_max)
         length = transition_length(d_to - d_now, speed, self.plan.comfort)
         sl = slice(idx.start, idx.stop)
@@ -381,7 +385,8 @@ class Planner(Component):
     def _outputs(self, t: float, psi: float, vx: float) -> dict[str, Value]:
         """Both windows and the scalar outputs at the current progress."""
         idx = self._indices(t)
-        shift = 2 * np.pi * round((psi - self.ref_route.psi[idx.start]) / (2 * np.pi))
+        # on Python floats: the same IEEE operations as on numpy's scalar, without its overhead
+        shift = 2 * np.pi * round((psi - float(self.ref_route.psi[idx.start])) / (2 * np.pi))
         d_now = float(np.interp(self.progress, self.grid.s, self.ref_route.d))
         out: dict[str, Value] = self.ref_route.window(idx, shift, "ref")
         out.update(self._alt_window(idx, vx, shift, d_now))
