@@ -175,10 +175,14 @@ class PreparedWindow:
             moved = math.hypot(px - x0, py - y0)
             if moved < radius:
                 i = self.best[slot]
-                best_d, best_t = self.chord_distance2(i, px, py)
+                chords = self.chord_data
+                x0, y0, dx, dy, l2 = chords[i]        # chord_distance2, inlined
+                t = ((px - x0) * dx + (py - y0) * dy) / l2
+                best_t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+                ex, ey = x0 + best_t * dx - px, y0 + best_t * dy - py
+                best_d = ex * ex + ey * ey
                 # chord k can only beat the best if floor[k] - moved (its least distance now) does
                 bound = math.sqrt(best_d) + self.slack + moved
-                chords = self.chord_data
                 # floor ascending: once a floor exceeds the bound (which only shrinks), so do the rest;
                 # the skipped chords are farther than the best, so the order does not change the answer
                 for least, k in floor:
