@@ -66,8 +66,8 @@ class InputReader:
 
     The window only changes when the planner steps, so `read` keeps the
     PreparedWindow of the last one and reuses it while the same arrays come in
-    again: the very same read-only arrays that own their data (the in-process
-    master's frozen values), or arrays with the same bytes (a transport that
+    again: the very same read-only arrays that own their data or view a read-only
+    owner (the in-process master's frozen values), or arrays with the same bytes (a transport that
     decodes fresh arrays every tick). Anything else is checked and prepared anew.
     """
 
@@ -99,8 +99,7 @@ class InputReader:
         if content is None or content != self._content or not self._arrays:
             content = self._prepare(arrays, inputs, t)
         self._arrays, self._content = arrays, content
-        self._frozen = all(isinstance(a, np.ndarray) and a.flags.owndata and not a.flags.writeable
-                           and a.dtype == np.float64 for a in arrays)
+        self._frozen = all(map(_frozen_array, arrays))
         return plant, self._prepared
 
     def _prepare(self, arrays: tuple, inputs: Mapping[str, Value], t: float) -> bytes:
@@ -129,6 +128,16 @@ class InputReader:
                 raise ComponentError(f"bad trajectory window at t = {t}: {error}") from None
             self._prepared = PreparedWindow(window)
         return b"".join([getattr(window, name).tobytes() for name, _, _ in FIELDS])
+
+
+def _frozen_array(value) -> bool:
+    """A read-only float64 array owning its data, or a read-only view of one (the in-process
+    master hands out views of one copy of a component's array block): its bytes cannot change."""
+    if not isinstance(value, np.ndarray) or value.flags.writeable or value.dtype != np.float64:
+        return False
+    base = value.base
+    return value.flags.owndata or (isinstance(base, np.ndarray) and base.flags.owndata
+                                   and not base.flags.writeable)
 
 
 def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,
