@@ -57,6 +57,8 @@ PLANT_NAMES: tuple[str, ...] = tuple(port.name for port in PLANT_INPUTS)
 WINDOW_NAMES: tuple[str, ...] = tuple(f"ref_{name}" for name, _, _ in FIELDS)
 _pick_plant = operator.itemgetter(*PLANT_NAMES)
 _pick_window = operator.itemgetter(*WINDOW_NAMES)
+_all = np.logical_and.reduce      # ndarray.all without its Python wrapper (once per window)
+_PI, _TWO_PI = math.pi, 2.0 * math.pi
 
 
 class InputReader:
@@ -64,8 +66,8 @@ class InputReader:
 
     The window only changes when the planner steps, so `read` keeps the
     PreparedWindow of the last one and reuses it while the same arrays come in
-    again: the very same read-only arrays that own their data (the in-process
-    master's frozen values), or arrays with the same bytes (a transport that
+    again: the very same read-only arrays that own their data or view a read-only
+    owner (the in-process master's frozen values), or arrays with the same bytes (a transport that
     decodes fresh arrays every tick). Anything else is checked and prepared anew.
     """
 
@@ -97,8 +99,7 @@ class InputReader:
         if content is None or content != self._content or not self._arrays:
             content = self._prepare(arrays, inputs, t)
         self._arrays, self._content = arrays, content
-        self._frozen = all(isinstance(a, np.ndarray) and a.flags.owndata and not a.flags.writeable
-                           and a.dtype == np.float64 for a in arrays)
+        self._frozen = all(map(_frozen_array, arrays))
         return plant, self._prepared
 
     def _prepare(self, arrays: tuple, inputs: Mapping[str, Value], t: float) -> bytes:
@@ -112,8 +113,9 @@ class InputReader:
             matrix = np.array(arrays, dtype=np.float64)
         except (TypeError, ValueError):
             matrix = None
-        if (matrix is not None and matrix.ndim == 2 and matrix.shape[1] >= 2 and np.isfinite(matrix).all()
-                and (matrix[4, 1:] > matrix[4, :-1]).all()):     # row 4: s (controllers.trajectory.FIELDS)
+        if (matrix is not None and matrix.ndim == 2 and matrix.shape[1] >= 2
+                and _all(np.isfinite(matrix), axis=None)
+                and _all(matrix[4, 1:] > matrix[4, :-1])):     # row 4: s (controllers.trajectory.FIELDS)
             self._prepared = PreparedWindow(matrix)
             return matrix.tobytes()
         window = TrajectoryWindow.from_signals(inputs, "ref")
@@ -126,6 +128,16 @@ class InputReader:
                 raise ComponentError(f"bad trajectory window at t = {t}: {error}") from None
             self._prepared = PreparedWindow(window)
         return b"".join([getattr(window, name).tobytes() for name, _, _ in FIELDS])
+
+
+def _frozen_array(value) -> bool:
+    """A read-only float64 array owning its data, or a read-only view of one (the in-process
+    master hands out views of one copy of a component's array block): its bytes cannot change."""
+    if not isinstance(value, np.ndarray) or value.flags.writeable or value.dtype != np.float64:
+        return False
+    base = value.base
+    return value.flags.owndata or (isinstance(base, np.ndarray) and base.flags.owndata
+                                   and not base.flags.writeable)
 
 
 def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,
@@ -147,9 +159,9 @@ def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,
     if w.best[1] < 0:       # a new window: start the preview point's search about ls ahead of the CG's
         w.best[1] = w.best[0] + round(ls / w.mean_chord)
     preview = foot(w, x + ls * math.cos(psi), y + ls * math.sin(psi), 1)
-    psi_l = (psi - preview[4] + math.pi) % (2.0 * math.pi) - math.pi     # wrap_angle, inlined
+    psi_l = (psi - preview[4] + _PI) % _TWO_PI - _PI     # wrap_angle, inlined
     y_l, h_cg = preview[3], at_cg[4]
-    turn = (preview[4] - h_cg + math.pi) % (2.0 * math.pi) - math.pi
+    turn = (preview[4] - h_cg + _PI) % _TWO_PI - _PI
     bend = math.cos(h_cg) * (preview[2] - at_cg[2]) - math.sin(h_cg) * (preview[1] - at_cg[1])
     return (y_l, psi_l, y_l - ls * psi_l, at_cg[3], preview[5], preview[6] * vx, at_cg[7],
             at_cg[8], at_cg[5], at_cg[6] * vx, turn, bend)

@@ -371,17 +371,24 @@ class ScalarLateralLaw:
         self.g00, self.g01 = gains.kz + gains.gz * d0 * d0, gains.gz * d0 * d1
         self.g11 = gains.kz + gains.gz * d1 * d1
 
-    def _unit(self, vx: float, mu: float) -> tuple[float, float, float]:
-        """steady_state_per_curvature's [psiL, vy, r] per unit curvature."""
-        a00, a01 = mu * self.c00 / vx, mu * self.c01 / vx - vx
-        a10, a11 = mu * self.c10 / vx, mu * self.c11 / vx
-        b1, b2 = mu * self.b0, mu * self.b1
-        det = a00 * b2 - a10 * b1
-        if abs(det) < 1e-12 * max(abs(a00 * b2), abs(a10 * b1)):
-            raise ComponentError(f"no steady-state steer at vx = {vx} m/s: model matrix is singular")
-        rhs1, rhs2 = -a01 * vx, -a11 * vx
-        vy = (rhs1 * b2 - rhs2 * b1) / det
-        return -(vy + self.ls * vx) / vx, vy, vx
+    def _units(self, vx: float, step: float, mu: float) -> tuple[float, ...]:
+        """steady_state_per_curvature's [psiL, vy, r] per unit curvature at vx, vx + step and vx - step.
+
+        The three points share the products of mu (mu * c / v is (mu * c) / v: the same values).
+        """
+        mc00, mc01, mc10, mc11 = mu * self.c00, mu * self.c01, mu * self.c10, mu * self.c11
+        b1, b2, ls = mu * self.b0, mu * self.b1, self.ls
+        out = []
+        for v in (vx, vx + step, vx - step):
+            a00, a01 = mc00 / v, mc01 / v - v           # mu * c00 / v, mu * c01 / v - v
+            a10, a11 = mc10 / v, mc11 / v
+            det = a00 * b2 - a10 * b1
+            if abs(det) < 1e-12 * max(abs(a00 * b2), abs(a10 * b1)):
+                raise ComponentError(f"no steady-state steer at vx = {v} m/s: model matrix is singular")
+            rhs1, rhs2 = -a01 * v, -a11 * v
+            vy = (rhs1 * b2 - rhs2 * b1) / det
+            out += (-(vy + ls * v) / v, vy, v)
+        return tuple(out)
 
     def reference(self, vx: float, vx_dot: float, rho: float, rho_dot: float,
                   mu_hat: float, at_cg: tuple[float, float, float, float]) -> tuple[float, ...]:
@@ -393,10 +400,8 @@ class ScalarLateralLaw:
         if not self.feedforward:
             kin, kin_dot = vx * rho, vx_dot * rho + vx * rho_dot
             return 0.0, 0.0, 0.0, 0.0, -ls * kin, kin, -ls * kin_dot, kin_dot
-        u0, u1, u2 = self._unit(vx, mu_hat)
         step = 1e-4 * vx
-        p0, p1, p2 = self._unit(vx + step, mu_hat)
-        n0, n1, n2 = self._unit(vx - step, mu_hat)
+        u0, u1, u2, p0, p1, p2, n0, n1, n2 = self._units(vx, step, mu_hat)
         two = 2.0 * step
         if self.at_cg:      # _cg_reference, written out
             rho_cg, rho_cg_dot, turn, bend = at_cg

@@ -66,6 +66,8 @@ ROUTE_DS = 0.25        # m, reference grid the route is laid out on (window poin
 PROFILE_DS = 0.5       # m, arc-length grid of the speed profiles
 STATE_KEEP, STATE_CHANGING, STATE_STOPPING, STATE_HOLD = 0.0, 1.0, 2.0, 3.0
 HOLD_SPEED = 0.01      # m/s: below it, in the stop's final segment or past it, the vehicle is held
+_cumsum = np.add.accumulate     # np.cumsum of a 1-D array without its Python wrapper (every step)
+_WINDOW_KEYS: dict[str, tuple[str, ...]] = {}    # port names of a window per prefix, made once
 
 
 class RouteGrid:
@@ -79,10 +81,11 @@ class RouteGrid:
         x, y, psi, k = road.reference.evaluate(self.s)
         self.base = (x, y, np.unwrap(psi), k, road.reference.dkappa(self.s))
         self.trig = (np.sin(self.base[2]), np.cos(self.base[2]))
+        self._s_first = float(self.s[0])
 
     def index(self, s: float) -> int:
         """Index of the last grid point at or before s."""
-        return int(np.floor((s - self.s[0]) / ROUTE_DS + 1e-9))
+        return math.floor((s - self._s_first) / ROUTE_DS + 1e-9)
 
     def trajectory(self, lateral: LateralPlan, sl: slice = slice(None)):
         """x, y, psi, kappa and own arc length (from the slice start) of a lateral plan."""
@@ -95,11 +98,12 @@ class RouteGrid:
             profile: (d, dd/ds, d2d/ds2) at the grid points sl.
             sl: a contiguous slice of the grid.
         """
-        x, y, psi, kappa, g = frenet_from_base(tuple(b[sl] for b in self.base), *profile, self.s[sl],
+        x0, y0, psi0, k, dk = self.base
+        x, y, psi, kappa, g = frenet_from_base((x0[sl], y0[sl], psi0[sl], k[sl], dk[sl]), *profile, self.s[sl],
                                                trig=(self.trig[0][sl], self.trig[1][sl]))
         sigma = np.empty(g.size)
         sigma[0] = 0.0
-        np.cumsum(0.5 * ROUTE_DS * (g[1:] + g[:-1]), out=sigma[1:])
+        _cumsum(0.5 * ROUTE_DS * (g[1:] + g[:-1]), out=sigma[1:])
         return x, y, psi, kappa, sigma
 
 
@@ -153,7 +157,10 @@ class RoutePlan:
 
 def window_signals(prefix: str, *fields: np.ndarray) -> dict[str, np.ndarray]:
     """The port values of one window from its fields in controllers.trajectory.FIELDS order."""
-    return {f"{prefix}_{name}": value for (name, _, _), value in zip(FIELDS, fields)}
+    names = _WINDOW_KEYS.get(prefix)
+    if names is None:
+        names = _WINDOW_KEYS[prefix] = tuple(f"{prefix}_{name}" for name, _, _ in FIELDS)
+    return dict(zip(names, fields))
 
 
 def _read_only(value: np.ndarray) -> np.ndarray:
@@ -243,6 +250,7 @@ class Planner(Component):
             self.inputs, self.outputs = Planner.inputs + LEAD_INPUTS, Planner.outputs + FOLLOWING_OUTPUTS
         self.ref_route: RoutePlan | None = None
         self.alt_route: RoutePlan | None = None
+        self._alt_offset: float | None = None      # lateral offset of plan.alt_lane, looked up once
         self.holding = False
         self.alt_read = True  # False: nothing reads alt_* (use_outputs), the first window is held
         self._alt_held: dict[str, np.ndarray] | None = None
@@ -362,7 +370,9 @@ class Planner(Component):
             idx: the window's grid points; vx: vehicle speed, m/s.
             psi_shift: heading shift (2 pi k); d_now: recommended offset at the vehicle, m.
         """
-        d_to = self.road.lane_offset(self.plan.alt_lane)
+        d_to = self._alt_offset
+        if d_to is None:
+            d_to = self._alt_offset = self.road.lane_offset(self.plan.alt_lane)
         speed = min(max(vx, 3.0), self.limits.v_max)
         length = transition_length(d_to - d_now, speed, self.plan.comfort)
         sl = slice(idx.start, idx.stop)
@@ -375,7 +385,8 @@ class Planner(Component):
     def _outputs(self, t: float, psi: float, vx: float) -> dict[str, Value]:
         """Both windows and the scalar outputs at the current progress."""
         idx = self._indices(t)
-        shift = 2 * np.pi * round((psi - self.ref_route.psi[idx.start]) / (2 * np.pi))
+        # on Python floats: the same IEEE operations as on numpy's scalar, without its overhead
+        shift = 2 * np.pi * round((psi - float(self.ref_route.psi[idx.start])) / (2 * np.pi))
         d_now = float(np.interp(self.progress, self.grid.s, self.ref_route.d))
         out: dict[str, Value] = self.ref_route.window(idx, shift, "ref")
         out.update(self._alt_window(idx, vx, shift, d_now))

@@ -12,6 +12,8 @@ import numpy as np
 
 from controllers.road.geometry import Path, SpecError
 
+_any = np.logical_or.reduce     # ndarray.any without its Python wrapper (every planner step)
+
 
 def frenet_to_world(path: Path, s, d, dd, ddd):
     """World trajectory of the offset profile d(s) along a reference path.
@@ -41,9 +43,9 @@ def frenet_from_base(base, d, dd, ddd, s=None, trig=None):
             evaluation at every planner step; the same values bit for bit).
     """
     x0, y0, psi0, k, dk = base
-    d, dd, ddd = (np.asarray(a, dtype=float) for a in (d, dd, ddd))
+    d, dd, ddd = np.asarray(d, dtype=float), np.asarray(dd, dtype=float), np.asarray(ddd, dtype=float)
     a = 1.0 - k * d
-    if (a <= 0.0).any():
+    if _any(a <= 0.0):
         bad = int(np.argmax(a <= 0.0))
         where = f" at s = {s[bad]:.3f} m" if s is not None else ""
         raise SpecError(f"lateral offset {d[bad]:.3f} m{where} crosses the road's "

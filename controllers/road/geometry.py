@@ -32,6 +32,8 @@ from controllers.road.spline import spline_knots
 
 _GL_T, _GL_W = np.polynomial.legendre.leggauss(10)
 _GL_PAIRS = tuple(zip(_GL_T.tolist(), _GL_W.tolist()))
+# _point's form of the pairs: 0.5 * (t_n + 1.0), the node's fraction of the interval, and w_n
+_GL_FRACTIONS = tuple((0.5 * (tn + 1.0), wn) for tn, wn in _GL_PAIRS)
 MAX_TURN = 0.2          # rad of heading change per interval
 MAX_INTERVAL = 2.0      # m per interval: also the coarse grid of projections
 CLOSE_TOL = 1e-3        # m (and rad) a closed path may miss its start by
@@ -101,11 +103,12 @@ class Path:
         self._ey = np.diff(self.y) - iy
         self._lists = [a.tolist() for a in (self.s, self._len, self.psi, self.k0, self._dk, self.x,
                                             self._ex, self.y, self._ey, self._epsi)]
+        self._length = float(self.s[-1])
 
     @property
     def length(self) -> float:
         """Total arc length L."""
-        return float(self.s[-1])
+        return self._length
 
     # ---- evaluation -----------------------------------------------------
     def _integrate(self, i: np.ndarray, u: np.ndarray):
@@ -155,7 +158,11 @@ class Path:
 
     def wrap(self, s):
         """Arc length modulo L (closed paths); unchanged for open paths."""
-        return np.mod(s, self.length) if self.closed else s
+        if not self.closed:
+            return s
+        if type(s) is float:      # Python's % on floats is np.mod's algorithm (fmod, sign fix-up)
+            return s % self._length
+        return np.mod(s, self._length)
 
     # ---- projection -----------------------------------------------------
     def _candidates(self, s_guess: float | None, search: float) -> np.ndarray:
@@ -179,7 +186,7 @@ class Path:
                 branch where the path comes back near itself.
             search: half-width of the warm-start window, m.
         """
-        if not (np.isfinite(px) and np.isfinite(py)):
+        if not (math.isfinite(px) and math.isfinite(py)):
             raise SpecError(f"cannot project non-finite point ({px}, {py})")
         s = None
         if s_guess is not None:                       # tracking: Newton from the previous foot point
@@ -230,11 +237,12 @@ class Path:
         u = s - sl[0][i]
         psi_i, k0, dk = sl[2][i], sl[3][i], sl[4][i]
         cx = sy = 0.0
-        for tn, wn in _GL_PAIRS:
-            v = 0.5 * (tn + 1.0) * u
-            ph = psi_i + k0 * v + 0.5 * dk * v * v
-            cx += wn * math.cos(ph)
-            sy += wn * math.sin(ph)
+        half_dk, cos, sin = 0.5 * dk, math.cos, math.sin
+        for fraction, wn in _GL_FRACTIONS:
+            v = fraction * u                    # 0.5 * (tn + 1.0) * u
+            ph = psi_i + k0 * v + half_dk * v * v
+            cx += wn * cos(ph)
+            sy += wn * sin(ph)
         frac = u / sl[1][i]
         x = sl[5][i] + 0.5 * u * cx + frac * sl[6][i]
         y = sl[7][i] + 0.5 * u * sy + frac * sl[8][i]

@@ -119,9 +119,10 @@ class PreparedWindow:
         length2 = square[0] + square[1]
         self.reach = list(itertools.accumulate(np.sqrt(length2).tolist(), initial=0.0))
         # slack of the skip test: covers rounding in reach, distances and squared distances
-        self.slack = 1e-9 * (1.0 + self.reach[-1] + 2.0 * float(abs(matrix[:2]).max()))
+        self.slack = 1e-9 * (1.0 + self.reach[-1] + 2.0 * float(np.maximum.reduce(abs(matrix[:2]), axis=None)))
         self.dx, self.dy = delta.tolist()
         self.length2 = np.maximum(length2, 1e-300).tolist()
+        self.chord_data = list(zip(self.x, self.y, self.dx, self.dy, self.length2))   # per chord, one look-up
         self.chords = len(self.dx)
         self._segments: list[tuple | None] = [None] * self.chords
         # tracked_chord's state per slot: certificate (x0, y0, R, lo, hi, floor), last answer (-1: none)
@@ -135,8 +136,8 @@ class PreparedWindow:
 
     def chord_distance2(self, i: int, px: float, py: float) -> tuple[float, float]:
         """Squared distance from (px, py) to chord i and the clamped chord parameter of the foot."""
-        x0, y0, dx, dy = self.x[i], self.y[i], self.dx[i], self.dy[i]
-        t = ((px - x0) * dx + (py - y0) * dy) / self.length2[i]
+        x0, y0, dx, dy, l2 = self.chord_data[i]
+        t = ((px - x0) * dx + (py - y0) * dy) / l2
         t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
         ex, ey = x0 + t * dx - px, y0 + t * dy - py
         return ex * ex + ey * ey, t
@@ -159,10 +160,11 @@ class PreparedWindow:
         Each slot (one per tracked point, e.g. 0 the CG, 1 the preview point)
         keeps a certificate from its last full search at p0: every chord
         outside the index range [lo, hi] is farther than R from p0, and chord
-        k inside it at least floor[k] away. For a point p within d of p0, only
-        the chords of lo..hi whose floor[k] - d does not exceed the best
-        distance are measured; if the best is nearer than R - d, no other
-        chord can be nearer. Otherwise a full search renews the certificate.
+        k inside it at least floor[k] away (kept as (floor[k], k) pairs, floor
+        ascending). For a point p within d of p0, only the chords of lo..hi
+        whose floor[k] - d does not exceed the best distance are measured; if
+        the best is nearer than R - d, no other chord can be nearer. Otherwise
+        a full search renews the certificate.
 
         Args:
             px, py: the point; slot: 0 to 3.
@@ -173,15 +175,23 @@ class PreparedWindow:
             moved = math.hypot(px - x0, py - y0)
             if moved < radius:
                 i = self.best[slot]
-                best_d, best_t = self.chord_distance2(i, px, py)
+                chords = self.chord_data
+                x0, y0, dx, dy, l2 = chords[i]        # chord_distance2, inlined
+                t = ((px - x0) * dx + (py - y0) * dy) / l2
+                best_t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+                ex, ey = x0 + best_t * dx - px, y0 + best_t * dy - py
+                best_d = ex * ex + ey * ey
                 # chord k can only beat the best if floor[k] - moved (its least distance now) does
                 bound = math.sqrt(best_d) + self.slack + moved
-                xs, ys, dxs, dys, l2s = self.x, self.y, self.dx, self.dy, self.length2
-                for k in range(lo, hi + 1):
-                    if floor[k - lo] > bound or k == i:
+                # floor ascending: once a floor exceeds the bound (which only shrinks), so do the rest;
+                # the skipped chords are farther than the best, so the order does not change the answer
+                for least, k in floor:
+                    if least > bound:
+                        break
+                    if k == i:
                         continue
-                    x0, y0, dx, dy = xs[k], ys[k], dxs[k], dys[k]        # chord_distance2, inlined
-                    t = ((px - x0) * dx + (py - y0) * dy) / l2s[k]
+                    x0, y0, dx, dy, l2 = chords[k]        # chord_distance2, inlined
+                    t = ((px - x0) * dx + (py - y0) * dy) / l2
                     t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
                     ex, ey = x0 + t * dx - px, y0 + t * dy - py
                     d = ex * ex + ey * ey
@@ -224,7 +234,8 @@ class PreparedWindow:
 
     def _search(self, px: float, py: float, hint: int, margin: float) -> tuple[int, float, tuple]:
         """Full exact search: (chord, chord parameter, (R, lo, hi, floor)) with R = best distance + margin,
-        every chord outside lo..hi farther than R and chord k of lo..hi at least floor[k - lo] away.
+        every chord outside lo..hi farther than R and chord k of lo..hi at least floor[k - lo] away
+        (floor as the (floor[k - lo], k) pairs of lo..hi, sorted).
 
         A descent from `hint` finds a near chord, then the chords on each side
         are scanned, skipping runs whose polyline reach from an anchor point
@@ -264,7 +275,7 @@ class PreparedWindow:
         for k, d in seen:
             if lo <= k <= hi:
                 floor[k - lo] = min(floor[k - lo], sqrt(d))
-        return i, best_t, (radius, lo, hi, floor)
+        return i, best_t, (radius, lo, hi, sorted(zip(floor, range(lo, hi + 1))))
 
     def segment(self, i: int) -> tuple[float, ...]:
         """End positions and end tangents (scaled by the arc-length step) of segment i (kept once made)."""
@@ -282,9 +293,9 @@ def _hermite(seg: tuple[float, ...], t: float, order: int = 2) -> list[tuple[flo
     """Position and t-derivatives up to `order` of the Hermite curve of a segment (scalar math)."""
     x0, y0, mx0, my0, x1, y1, mx1, my1 = seg
     t2, t3 = t * t, t * t * t
-    weights = ((2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t, -2 * t3 + 3 * t2, t3 - t2),
-               (6 * t2 - 6 * t, 3 * t2 - 4 * t + 1, -6 * t2 + 6 * t, 3 * t2 - 2 * t),
-               (12 * t - 6, 6 * t - 4, -12 * t + 6, 6 * t - 2))
+    weights = ((2.0 * t3 - 3.0 * t2 + 1.0, t3 - 2.0 * t2 + t, -2.0 * t3 + 3.0 * t2, t3 - t2),
+               (6.0 * t2 - 6.0 * t, 3.0 * t2 - 4.0 * t + 1.0, -6.0 * t2 + 6.0 * t, 3.0 * t2 - 2.0 * t),
+               (12.0 * t - 6.0, 6.0 * t - 4.0, -12.0 * t + 6.0, 6.0 * t - 2.0))
     return [(w[0] * x0 + w[1] * mx0 + w[2] * x1 + w[3] * mx1,
              w[0] * y0 + w[1] * my0 + w[2] * y1 + w[3] * my1) for w in weights[:order + 1]]
 
@@ -297,14 +308,15 @@ def _refine(seg: tuple[float, ...], t: float, px: float, py: float) -> float:
     """
     x0, y0, mx0, my0, x1, y1, mx1, my1 = seg
     for _ in range(NEWTON_ITERATIONS):
-        t2, t3 = t * t, t * t * t
-        w0, w1, w2, w3 = 2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t, -2 * t3 + 3 * t2, t3 - t2
+        t2 = t * t
+        t3 = t2 * t           # t * t * t
+        w0, w1, w2, w3 = 2.0 * t3 - 3.0 * t2 + 1.0, t3 - 2.0 * t2 + t, -2.0 * t3 + 3.0 * t2, t3 - t2
         ex = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1 - px
         ey = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1 - py
-        w0, w1, w2, w3 = 6 * t2 - 6 * t, 3 * t2 - 4 * t + 1, -6 * t2 + 6 * t, 3 * t2 - 2 * t
+        w0, w1, w2, w3 = 6.0 * t2 - 6.0 * t, 3.0 * t2 - 4.0 * t + 1.0, -6.0 * t2 + 6.0 * t, 3.0 * t2 - 2.0 * t
         dx = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
         dy = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
-        w0, w1, w2, w3 = 12 * t - 6, 6 * t - 4, -12 * t + 6, 6 * t - 2
+        w0, w1, w2, w3 = 12.0 * t - 6.0, 6.0 * t - 4.0, -12.0 * t + 6.0, 6.0 * t - 2.0
         ddx = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
         ddy = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
         slope = dx * dx + dy * dy + ex * ddx + ey * ddy
@@ -350,22 +362,23 @@ def foot(w: PreparedWindow, px: float, py: float, slot: int = -1) -> tuple:
         beyond = _extrapolate(w, -1, px, py)
         if beyond is not None:
             return beyond
-    seg = w.segment(i)
+    seg = w._segments[i] or w.segment(i)
     t = _refine(seg, t, px, py)
     x0, y0, mx0, my0, x1, y1, mx1, my1 = seg
-    t2, t3 = t * t, t * t * t
-    w0, w1, w2, w3 = 2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t, -2 * t3 + 3 * t2, t3 - t2
+    t2 = t * t
+    t3 = t2 * t               # t * t * t
+    w0, w1, w2, w3 = 2.0 * t3 - 3.0 * t2 + 1.0, t3 - 2.0 * t2 + t, -2.0 * t3 + 3.0 * t2, t3 - t2
     x = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
     y = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
-    w0, w1, w2, w3 = 6 * t2 - 6 * t, 3 * t2 - 4 * t + 1, -6 * t2 + 6 * t, 3 * t2 - 2 * t
+    w0, w1, w2, w3 = 6.0 * t2 - 6.0 * t, 3.0 * t2 - 4.0 * t + 1.0, -6.0 * t2 + 6.0 * t, 3.0 * t2 - 2.0 * t
     dx = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
     dy = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
     norm = max(math.hypot(dx, dy), 1e-300)
-    s, psi, kappa, v, a = w.s, w.psi, w.kappa, w.v, w.a
-    return (s[i] + t * (s[i + 1] - s[i]), x, y, (dx * (py - y) - dy * (px - x)) / norm,
-            psi[i] + t * (psi[i + 1] - psi[i]), kappa[i] + t * (kappa[i + 1] - kappa[i]),
-            (kappa[i + 1] - kappa[i]) / (s[i + 1] - s[i]), v[i] + t * (v[i + 1] - v[i]),
-            a[i] + t * (a[i + 1] - a[i]), 0)
+    s, psi, kappa, v, a, j = w.s, w.psi, w.kappa, w.v, w.a, i + 1
+    step, rise = s[j] - s[i], kappa[j] - kappa[i]
+    return (s[i] + t * step, x, y, (dx * (py - y) - dy * (px - x)) / norm,
+            psi[i] + t * (psi[j] - psi[i]), kappa[i] + t * rise, rise / step,
+            v[i] + t * (v[j] - v[i]), a[i] + t * (a[j] - a[i]), 0)
 
 
 def project(window: TrajectoryWindow | PreparedWindow, px: float, py: float) -> Projection:

@@ -201,3 +201,24 @@ def test_input_reader_reuses_a_window_only_while_it_is_unchanged():
     assert reader.read(plant | empty, 0.08)[1] is None
     with pytest.raises(ComponentError, match=r"input 'vy' is not finite at t = 0.09: nan"):
         reader.read(plant | {"vy": math.nan} | frozen, 0.09)
+
+
+def test_input_reader_takes_read_only_views_of_a_read_only_block_by_identity():
+    # the in-process master hands out read-only views of one read-only copy of the planner's arrays
+    reader = InputReader()
+    plant = {"x": 0.0, "y": 0.2, "psi": 0.0, "vx": 5.0, "vy": 0.0, "r": 0.0}
+    signals = make_window(LinePath(), -5.0).to_signals("ref")
+    block = np.array(list(signals.values()))
+    block.flags.writeable = False
+    views = dict(zip(signals, block))
+    _, first = reader.read(plant | views, 0.0)
+    assert reader._frozen and reader.read(plant | views, 0.01)[1] is first
+    writable = np.array(list(signals.values()))       # views of a block that can still change
+    loose = {name: row.view() for name, row in zip(signals, writable)}
+    for row in loose.values():
+        row.flags.writeable = False
+    _, second = reader.read(plant | loose, 0.02)
+    assert not reader._frozen
+    writable[1] = 1.0                                  # changed in place under the read-only views
+    _, moved = reader.read(plant | loose, 0.03)
+    assert moved is not second and moved.y == [1.0] * 64

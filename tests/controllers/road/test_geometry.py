@@ -114,6 +114,18 @@ def test_closed_loop_wraps_in_evaluation_and_projection():
     assert proj.s == pytest.approx(0.4, abs=1e-9)
 
 
+def test_wrap_of_a_float_is_np_mod_bit_for_bit():
+    # Path.wrap takes Python's % for a float (the planner's per-step progress) and np.mod otherwise
+    path = satory_standin().reference
+    rng = np.random.default_rng(7)
+    values = np.concatenate([rng.uniform(-3.0, 3.0, 5000) * path.length,
+                             [0.0, -0.0, path.length, -path.length, 2.0 * path.length, 1e-320, -1e-320]])
+    wrapped = np.array([path.wrap(float(v)) for v in values])
+    assert all(type(path.wrap(float(v))) is float for v in values[:10])
+    assert wrapped.tobytes() == np.mod(values, path.length).tobytes()
+    assert path.wrap(values).tobytes() == wrapped.tobytes()
+
+
 def test_open_path_extends_along_end_tangents():
     path = Path.from_spec({"segments": [{"arc": {"radius": 20, "angle": 90}}]})
     x, y, psi, kappa = path.evaluate([path.length + 5.0, -3.0])
