@@ -12,6 +12,16 @@ def rms(t: np.ndarray, v: np.ndarray) -> float:
         t: strictly increasing times.
         v: values at those times.
     """
+    with np.errstate(over="ignore"):
+        value = _rms(t, v)
+    if np.isinf(value) and np.isfinite(v).all():
+        # v * v overflowed: divide by a power of two first (exact), multiply back after
+        scale = 2.0 ** int(np.frexp(np.max(np.abs(v)))[1])
+        return scale * _rms(t, v / scale)
+    return value
+
+
+def _rms(t: np.ndarray, v: np.ndarray) -> float:
     if len(v) == 1 or t[-1] == t[0]:
         return float(np.sqrt(np.mean(v * v)))
     return float(np.sqrt(np.trapezoid(v * v, t) / (t[-1] - t[0])))

@@ -148,3 +148,11 @@ def test_a_plant_shaped_component_without_roles_is_named_in_the_note(tmp_path):
     assert "`metrics: {vehicle: car}` makes it the vehicle" in report.notes[0]
     metrics = json.loads((run / "metrics.json").read_text())
     assert metrics == report.values
+
+
+def test_rms_of_values_whose_squares_overflow_is_finite_and_exact_in_scale(recwarn):
+    t = np.array([0.0, 1.0, 2.0])
+    assert rms(t, np.full(3, 3e200)) == pytest.approx(3e200, rel=1e-15)
+    assert rms(np.array([0.0]), np.array([-1e300])) == pytest.approx(1e300, rel=1e-15)
+    assert rms(t, np.array([1e200, np.inf, 0.0])) == np.inf   # a non-finite input stays so
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
