@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.component import ComponentError, Port, Value
+from cosim.component import ComponentError, Port, Value, is_frozen
 from controllers.trajectory import FIELDS, TrajectoryWindow, window_ports
 from controllers.road.projection import (PreparedWindow, WindowError, foot, is_empty,
                                            validate_window)
@@ -99,7 +99,7 @@ class InputReader:
         if content is None or content != self._content or not self._arrays:
             content = self._prepare(arrays, inputs, t)
         self._arrays, self._content = arrays, content
-        self._frozen = all(map(_frozen_array, arrays))
+        self._frozen = all(map(is_frozen, arrays))
         return plant, self._prepared
 
     def _prepare(self, arrays: tuple, inputs: Mapping[str, Value], t: float) -> bytes:
@@ -128,16 +128,6 @@ class InputReader:
                 raise ComponentError(f"bad trajectory window at t = {t}: {error}") from None
             self._prepared = PreparedWindow(window)
         return b"".join([getattr(window, name).tobytes() for name, _, _ in FIELDS])
-
-
-def _frozen_array(value) -> bool:
-    """A read-only float64 array owning its data, or a read-only view of one (the in-process
-    master hands out views of one copy of a component's array block): its bytes cannot change."""
-    if not isinstance(value, np.ndarray) or value.flags.writeable or value.dtype != np.float64:
-        return False
-    base = value.base
-    return value.flags.owndata or (isinstance(base, np.ndarray) and base.flags.owndata
-                                   and not base.flags.writeable)
 
 
 def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,

@@ -142,6 +142,24 @@ class ModelReference:
         return getattr(importlib.import_module(module), name)
 
 
+def frozen_copy(value: Any) -> np.ndarray:
+    """A read-only float64 copy of `value` (what a host hands out, and what a component may hold)."""
+    array = np.array(value, dtype=np.float64)
+    array.flags.writeable = False
+    return array
+
+
+def is_frozen(value: Any) -> bool:
+    """Whether `value`'s bytes cannot change: a read-only float64 array that owns its data, or a
+    read-only view of one (the in-process master hands out views of one copy of a component's
+    array block). Such an array, received again, is known to hold the same values."""
+    if not isinstance(value, np.ndarray) or value.flags.writeable or value.dtype != np.float64:
+        return False
+    base = value.base
+    return value.flags.owndata or (isinstance(base, np.ndarray) and base.flags.owndata
+                                   and not base.flags.writeable)
+
+
 def ports_by_name(ports: tuple[Port, ...]) -> dict[str, Port]:
     """Index a port tuple by name, rejecting duplicates."""
     index: dict[str, Port] = {}

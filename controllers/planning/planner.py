@@ -52,7 +52,7 @@ from collections.abc import Mapping, Set
 
 import numpy as np
 
-from cosim.component import Component, ComponentError, ModelReference, Port, Value
+from cosim.component import Component, ComponentError, ModelReference, Port, Value, frozen_copy
 from controllers.road.geometry import SpecError, spec_number
 from controllers.planning.following import FOLLOWING_OUTPUTS, LEAD_INPUTS, Follower
 from controllers.spec import MAX_LENGTH, MAX_REACH
@@ -161,13 +161,6 @@ def window_signals(prefix: str, *fields: np.ndarray) -> dict[str, np.ndarray]:
     if names is None:
         names = _WINDOW_KEYS[prefix] = tuple(f"{prefix}_{name}" for name, _, _ in FIELDS)
     return dict(zip(names, fields))
-
-
-def _read_only(value: np.ndarray) -> np.ndarray:
-    """A read-only copy (held outputs: the same object every step, so a transport sends it once)."""
-    copy = np.array(value, dtype=np.float64)
-    copy.flags.writeable = False
-    return copy
 
 
 class Planner(Component):
@@ -360,7 +353,7 @@ class Planner(Component):
         alt = (self._dynamic_alt(idx, vx, psi_shift, d_now) if self.alt_route is None
                else self.alt_route.window(idx, psi_shift, "alt"))
         if not self.alt_read:
-            alt = self._alt_held = {name: _read_only(value) for name, value in alt.items()}
+            alt = self._alt_held = {name: frozen_copy(value) for name, value in alt.items()}  # sent once
         return alt
 
     def _dynamic_alt(self, idx: slice, vx: float, psi_shift: float, d_now: float) -> dict[str, np.ndarray]:

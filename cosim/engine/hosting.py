@@ -50,4 +50,3 @@ class HostedComponent(Protocol):
     def stop(self) -> dict[str, float]:
         """End the component (process, FMU instance); return its final metrics."""
         ...
-

@@ -184,7 +184,7 @@ class Master:
             observer.begin(self)
         t0 = self.t0
         if self.outputs_read is not None:
-            self._tell_outputs_read(self.outputs_read)
+            self._tell_outputs_read()
         for plan in self._plans:
             inputs = self._gather(plan)
             if self.trace is not None:
@@ -196,7 +196,9 @@ class Master:
             self._scatter(plan, outputs, None, t0)
         self._finish_tick(0, t0)
 
-    def _tell_outputs_read(self, outputs_read: Mapping[str, Set[str]]) -> None:
+    def _tell_outputs_read(self) -> None:
+        outputs_read = self.outputs_read
+        assert outputs_read is not None
         for plan in self._plans:
             tell = getattr(plan.hosted, "use_outputs", None)
             if tell is not None:

@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from cosim.component import frozen_copy
+
 
 class FrozenArrays(dict):
     """offset in the store's `arrays` -> a read-only float64 copy of that slot.
@@ -58,20 +60,13 @@ class FrozenArrays(dict):
     def __missing__(self, offset: int) -> np.ndarray:
         block = self.block_of.get(offset)
         if block is None:
-            value = self[offset] = freeze(self.arrays[offset:offset + self.sizes[offset]])
+            value = self[offset] = frozen_copy(self.arrays[offset:offset + self.sizes[offset]])
             return value
         start, stop, members = block
-        copy = freeze(self.arrays[start:stop])
+        copy = frozen_copy(self.arrays[start:stop])
         for off, size in members:
             self[off] = copy[off - start:off - start + size]  # views of a read-only copy
         return self[offset]
-
-
-def freeze(value: Any) -> np.ndarray:
-    """A read-only float64 copy of `value`."""
-    array = np.array(value, dtype=np.float64)
-    array.flags.writeable = False
-    return array
 
 
 def input_builder(scalars: Sequence[tuple[str, int]],

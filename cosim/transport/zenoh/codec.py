@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from cosim.component import Port, Value
+from cosim.component import Port, Value, is_frozen
 from cosim.engine.values import picker, value_problem
 # the stdlib-only part of the wire format, re-exported: one import for both halves
 from cosim.transport.zenoh.wire import (HEADER, CodecError, Kind, decode_json,  # noqa: F401
@@ -114,7 +114,7 @@ class Layout:
     def _changed(self, index: int, value: Any, values: Mapping[str, Value]) -> bytes | None:
         """The bytes of array port `index` if they differ from those last sent, else None."""
         last = self._sent[index]
-        frozen = _frozen(value)
+        frozen = is_frozen(value)
         if frozen and last is not None and value is last[0]:
             return None  # the same read-only array as last time: the same bytes
         try:
@@ -170,16 +170,6 @@ class Layout:
             if problem:
                 return f"{role} {port.name!r} {problem}"
         return ""
-
-
-def _frozen(value: Any) -> bool:
-    """A read-only float64 array owning its data, or a read-only view of one (the master hands
-    out views of one copy of a component's array block): nobody can change its bytes in place."""
-    if not isinstance(value, np.ndarray) or value.flags.writeable or value.dtype != np.float64:
-        return False
-    base = value.base
-    return value.flags.owndata or (isinstance(base, np.ndarray) and base.flags.owndata
-                                   and not base.flags.writeable)
 
 
 def ports_to_json(ports: Sequence[Port]) -> list[dict[str, Any]]:
