@@ -65,6 +65,12 @@ def restore() -> None:
         signal.signal(signal.SIGINT, _interrupt)
 
 
+def seen() -> bool:
+    """Whether a Ctrl-C arrived since `restore` (a library may have turned it into its own
+    error: pydantic-core raises a SchemaError when it lands while a model is being built)."""
+    return _seen
+
+
 def raise_if_swallowed() -> None:
     """Raise KeyboardInterrupt if a Ctrl-C arrived and nothing acted on it yet."""
     if _seen:

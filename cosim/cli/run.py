@@ -124,9 +124,11 @@ def run(
     except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
         raise _interrupted_exit() from None
     except Exception as exc:
-        if not isinstance(exc.__context__, KeyboardInterrupt):
-            raise
-        raise _interrupted_exit(f"{type(exc).__name__}: {exc}") from None  # while stopping
+        if isinstance(exc.__context__, KeyboardInterrupt):
+            raise _interrupted_exit(f"{type(exc).__name__}: {exc}") from None  # while stopping
+        if interrupts.seen():  # the Ctrl-C, turned into a library's own error
+            raise _interrupted_exit() from None
+        raise
     finally:
         if early is not None:
             early.close()

@@ -108,20 +108,36 @@ def _interrupted_then_cleanup_fails(*args, **kwargs):
         raise RuntimeError("cannot stop the writer process") from None
 
 
+def _interrupt_turned_into_a_library_error(*args, **kwargs):
+    from cosim.cli import interrupts
+
+    try:
+        interrupts._interrupt(signal.SIGINT, None)  # what the run's Ctrl-C handler does
+    except KeyboardInterrupt:
+        pass  # caught inside a library (pydantic-core, while it builds a model)...
+    raise RuntimeError("SchemaError: Error building `literal` serializer: KeyboardInterrupt")  # ...no context
+
+
 @pytest.mark.parametrize("load_and_run, note", [
     (_interrupted_run, ""),
+    (_interrupt_turned_into_a_library_error, ""),
     (_interrupted_then_cleanup_fails,
      " (then, while stopping: RuntimeError: cannot stop the writer process)")])
 def test_interrupt_before_tick0_is_one_line_exit_1(monkeypatch, capsys, load_and_run, note):
+    import cosim.cli.interrupts
     import cosim.cli.run
 
+    monkeypatch.setattr(cosim.cli.interrupts, "_seen", False)  # restored after the test
     monkeypatch.setattr(cosim.cli.run, "_load_and_run", load_and_run)
     assert main(["run", str(LANE_CHANGE), "--transport", "inproc"]) == 1
     assert capsys.readouterr().err == f"run failed: interrupted before tick 0{note}\n"
 
 
 def test_a_bug_outside_an_interrupt_is_not_hidden(monkeypatch):
+    import cosim.cli.interrupts
     import cosim.cli.run
+
+    monkeypatch.setattr(cosim.cli.interrupts, "_seen", False)  # no Ctrl-C came
 
     def buggy(*args, **kwargs):
         raise RuntimeError("a bug")
