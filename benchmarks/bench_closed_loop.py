@@ -27,6 +27,11 @@ functions with the most self time, and `--profile-out FILE` (.html or text) keep
 Run: .venv/bin/python benchmarks/bench_closed_loop.py [--seconds 20] [--repeats 5] [--clock cpu|wall]
      [--controller backstepping|feedforward|stanley|pure_pursuit] [--manoeuvre lane_keeping|lane_change]
      [--profile] [--profile-out FILE] [--profiler pyinstrument|py-spy] [--fmu-host platform|fmpy]
+     [--projection interpreted|compiled|both]
+
+`--projection` picks the controllers' window projection (controllers.road.projection): the
+interpreted one, the one numba compiles (the `jit` extra; COSIM_JIT), or both in alternating runs,
+each with its own table (the default when numba is installed). Both give the same bits.
 
 `--fmu-host platform` (the default) hosts the FMU as `cosim run` does: `FmuComponent` through
 the C stepping shim (`cosim.fmu.stepper`, one C call per step); `--fmu-host fmpy` takes the
@@ -38,6 +43,8 @@ so figures from different sessions can be compared.
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import os
 import sys
 import tempfile
 import time
@@ -58,8 +65,11 @@ from cosim.execution.prepare import prepare_run  # noqa: E402
 from cosim.scenario.loader import load_scenario  # noqa: E402
 from cosim.engine.wiring import resolve_wiring  # noqa: E402
 from cosim.execution import fmu_hosting  # noqa: E402
+from controllers.road import projection  # noqa: E402
 
 TARGET_RTF = 500.0
+PROJECTIONS = {"interpreted": ("interpreted",), "compiled": ("compiled",), "both": ("interpreted", "compiled")}
+DEFAULT_PROJECTION = "both" if importlib.util.find_spec("numba") else "interpreted"
 CLOCKS = {"cpu": time.thread_time, "wall": time.perf_counter}
 CLOCK = time.thread_time      # set from --clock in main()
 CONTROLLERS = {
@@ -246,6 +256,9 @@ def main() -> None:
     parser.add_argument("--profiler", choices=PROFILERS, default="pyinstrument",
                         help="pyinstrument (in-process, inflates Python code ~2x) or py-spy (attaches "
                              "from outside, needs ptrace rights, no slow-down)")
+    parser.add_argument("--projection", choices=sorted(PROJECTIONS), default=DEFAULT_PROJECTION,
+                        help="the controllers' window projection: interpreted, compiled (numba, the jit "
+                             "extra) or both, alternating (default: both when numba is installed)")
     parser.add_argument("--fmu-host", choices=FMU_HOSTS, default="platform",
                         help="platform: cosim's FmuComponent as runs use it (the C stepping shim, 1 call "
                              "per step); fmpy: its per-call path (3 ctypes calls, as without a compiler)")
@@ -256,32 +269,49 @@ def main() -> None:
     CLOCK, FMU_HOST = CLOCKS[args.clock], args.fmu_host
     print(f"machine-speed anchor: {speed_anchor():.1f} ns per pure-Python loop iteration "
           f"(benchmarks.common.speed_anchor); load average {load_average()}")
+    modes = PROJECTIONS[args.projection]
     with tempfile.TemporaryDirectory() as tmp:
         prepared = prepare_run(load_scenario(write_scenario(Path(tmp), args.seconds, args.controller,
                                                             args.manoeuvre)))
         ticks, tick = prepared.scenario.total_ticks, prepared.scenario.tick
-        plain, timed = [], []
+        plain, timed = {mode: [] for mode in modes}, {mode: [] for mode in modes}
         for _ in range(args.repeats):
-            plain.append(run_once(prepared, timed=False)[0] / ticks * 1e6)
-            timed.append(timed_figures(prepared, ticks))
+            for mode in modes:      # alternating, so both see the same machine
+                use_projection(mode)
+                plain[mode].append(run_once(prepared, timed=False)[0] / ticks * 1e6)
+                timed[mode].append(timed_figures(prepared, ticks))
         if args.profile or args.profile_out:
+            use_projection(modes[-1])
             profile_run(prepared, args.profile_out, args.profiler)
-    best = min(timed, key=lambda figures: figures["total"])
-    labels = {"vehicle": "FMU step (vehicle)", "controller": "controller (every tick)",
-              "planner": "planner (amortized, 1 in 10 ticks)"}
     path = " + ".join(sorted(PATHS_SEEN))
     print(f"{args.controller} + planner ({args.manoeuvre}) + Vehicle8DOF ({args.fmu_host} FMU host, {path} path), "
           f"{ticks} ticks of "
           f"{tick * 1e3:g} ms, {args.clock} clock, best of {args.repeats} timed runs (timer costs taken off)")
+    for mode in modes:
+        report(mode, timed[mode], plain[mode], tick, args.clock)
+
+
+def use_projection(mode: str) -> None:
+    """The controllers' window projection for the next runs: 'interpreted' or 'compiled' (numba)."""
+    os.environ[projection.JIT_VARIABLE] = "off" if mode == "interpreted" else "on"
+    projection.compiled_kernel.cache_clear()
+    projection.compiled_kernel()        # imports and loads the compiled code now, not inside a timed run
+
+
+def report(mode: str, timed: list[dict], plain: list[float], tick: float, clock: str) -> None:
+    """One projection's table: the best timed run per part and the fastest untimed run's real-time factor."""
+    best = min(timed, key=lambda figures: figures["total"])
+    labels = {"vehicle": "FMU step (vehicle)", "controller": "controller (every tick)",
+              "planner": "planner (amortized, 1 in 10 ticks)"}
+    print(f"-- projection: {mode}")
     print(f"{'part':<36}{'us/tick':>10}{'share':>8}")
     for name, value in best.items():
         share = f"{100 * value / best['total']:>7.0f}%" if name != "total" else ""
         print(f"{labels.get(name, name):<36}{value:>10.2f}{share}")
     total = min(plain)
     rtf = tick * 1e6 / total
-    print(f"untimed runs: {total:.2f} us/tick ({args.clock} clock), real-time factor {rtf:.0f}x; target {TARGET_RTF:.0f}x; "
+    print(f"untimed runs: {total:.2f} us/tick ({clock} clock), real-time factor {rtf:.0f}x; target {TARGET_RTF:.0f}x; "
           f"ratio {rtf / TARGET_RTF:.3f}")
-
 
 if __name__ == "__main__":
     try:

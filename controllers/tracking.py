@@ -29,7 +29,7 @@ import numpy as np
 
 from cosim.component import ComponentError, Port, Value, is_frozen
 from controllers.trajectory import FIELDS, TrajectoryWindow, window_ports
-from controllers.road.projection import (PreparedWindow, WindowError, foot, is_empty,
+from controllers.road.projection import (PreparedWindow, WindowError, compiled_kernel, foot, is_empty,
                                            validate_window)
 
 PLANT_INPUTS: tuple[Port, ...] = (
@@ -72,6 +72,7 @@ class InputReader:
     """
 
     def __init__(self) -> None:
+        compiled_kernel()     # the compiled projection's import and load now, before the first tick, not in it
         self._arrays: tuple = ()
         self._frozen = False
         self._content = b""
@@ -146,7 +147,7 @@ def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,
         the CG foot's tangent (left positive); see the module docstring.
     """
     at_cg = foot(w, x, y, 0)
-    if w.best[1] < 0:       # a new window: start the preview point's search about ls ahead of the CG's
+    if w.compiled is None and w.best[1] < 0:   # a new window: start the preview point's search ls ahead
         w.best[1] = w.best[0] + round(ls / w.mean_chord)
     preview = foot(w, x + ls * math.cos(psi), y + ls * math.sin(psi), 1)
     psi_l = (psi - preview[4] + _PI) % _TWO_PI - _PI     # wrap_angle, inlined

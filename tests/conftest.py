@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
 from tests.helpers.fmus import FaultyFmus, build_lag
+
+# The suite runs the controllers' interpreted projection (and every component process it starts
+# inherits this): the compiled one (numba) is held to it bit for bit by
+# tests/controllers/road/test_projection_jit.py, which switches it on itself.
+os.environ.setdefault("COSIM_JIT", "off")
 
 
 @pytest.fixture(scope="session")

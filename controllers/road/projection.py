@@ -19,15 +19,19 @@ dkappa/ds is 0, and `extrapolated` says which end was used.
 from __future__ import annotations
 
 import bisect
+import functools
 import itertools
 import math
+import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
+from controllers.road import hermite
 from controllers.trajectory import FIELDS, TrajectoryWindow
 
-NEWTON_ITERATIONS = 4
+JIT_VARIABLE = "COSIM_JIT"   # auto (default): compiled when numba is installed; off; on: numba required
 
 
 class WindowError(ValueError):
@@ -105,15 +109,30 @@ class PreparedWindow:
     slots (see tracked_chord) serve points that move little between calls,
     such as a controller's CG and preview point while the window is the same.
 
+    `compiled` is foot()'s compiled path for this window (compiled_kernel()
+    bound to the window's arrays), or None for the interpreted one; the
+    search state above (chords, reach, tracking slots) exists only on the
+    interpreted path.
+
     Args:
         window: a valid trajectory window, or its fields as rows of a float64 matrix.
+        compiled: False keeps this window on the interpreted path even when the compiled one exists.
     """
 
-    def __init__(self, window: TrajectoryWindow | np.ndarray) -> None:
+    def __init__(self, window: TrajectoryWindow | np.ndarray, compiled: bool = True) -> None:
         # one (field, point) matrix in controllers.trajectory.FIELDS order
         matrix = window if isinstance(window, np.ndarray) else np.array(
             [getattr(window, name) for name, _, _ in FIELDS], dtype=np.float64)
+        kernel = compiled_kernel() if compiled else None
+        self.compiled = None if kernel is None else _bind(kernel, matrix)
         self.x, self.y, self.psi, self.kappa, self.s, self.v, self.a = matrix.tolist()
+        self.chords = len(self.s) - 1
+        self._segments: list[tuple | None] = [None] * self.chords
+        if self.compiled is None:
+            self._prepare_search(matrix)
+
+    def _prepare_search(self, matrix: np.ndarray) -> None:
+        """The interpreted path's chords, reach and tracking state (the compiled path scans every chord)."""
         delta = matrix[:2, 1:] - matrix[:2, :-1]            # chord dx, dy (as np.diff)
         square = delta * delta
         length2 = square[0] + square[1]
@@ -123,8 +142,6 @@ class PreparedWindow:
         self.dx, self.dy = delta.tolist()
         self.length2 = np.maximum(length2, 1e-300).tolist()
         self.chord_data = list(zip(self.x, self.y, self.dx, self.dy, self.length2))   # per chord, one look-up
-        self.chords = len(self.dx)
-        self._segments: list[tuple | None] = [None] * self.chords
         # tracked_chord's state per slot: certificate (x0, y0, R, lo, hi, floor), last answer (-1: none)
         self.certs: list[tuple | None] = [None, None, None, None]
         self.best = [-1, -1, -1, -1]
@@ -281,12 +298,61 @@ class PreparedWindow:
         """End positions and end tangents (scaled by the arc-length step) of segment i (kept once made)."""
         seg = self._segments[i]
         if seg is None:
-            step = self.s[i + 1] - self.s[i]
-            psi0, psi1 = self.psi[i], self.psi[i + 1]
-            seg = self._segments[i] = (
-                self.x[i], self.y[i], step * math.cos(psi0), step * math.sin(psi0),
-                self.x[i + 1], self.y[i + 1], step * math.cos(psi1), step * math.sin(psi1))
+            seg = self._segments[i] = hermite.segment(self.x, self.y, self.s, self.psi, i)
         return seg
+
+
+def _bind(kernel, matrix: np.ndarray) -> functools.partial:
+    """kernel(px, py) on the window of `matrix`, packed as projection_jit.foot_fields reads it."""
+    packed = np.zeros((10, matrix.shape[1]))
+    packed[:7] = matrix[[0, 1, 4, 2, 3, 5, 6]]      # FIELDS order x, y, psi, kappa, s, v, a -> x, y, s, psi, ...
+    delta = matrix[:2, 1:] - matrix[:2, :-1]
+    square = delta * delta
+    packed[7:9, :-1] = delta
+    packed[9, :-1] = np.maximum(square[0] + square[1], 1e-300)
+    return functools.partial(kernel, packed)
+
+
+@functools.cache
+def compiled_kernel():
+    """controllers.road.projection_jit.foot_fields, or None for the interpreted path.
+
+    None when COSIM_JIT is 0/off, when numba is not installed (COSIM_JIT=on
+    makes that an error), or when the compiled code disagrees with the
+    interpreted path in any bit on a built-in set of points (a warning says
+    so). The first call imports numba and loads (or compiles) the code.
+    """
+    mode = os.environ.get(JIT_VARIABLE, "auto").strip().lower()
+    if mode in ("0", "off", "no", "false"):
+        return None
+    try:
+        from controllers.road import projection_jit
+    except ImportError as error:
+        if mode in ("1", "on", "yes", "true"):
+            raise ImportError(f"{JIT_VARIABLE}={mode}: the compiled projection needs numba "
+                              f"(pip install 'cosim[jit]'): {error}") from None
+        return None
+    kernel = projection_jit.foot_fields
+    disagreement = _disagreement(kernel)
+    if disagreement:
+        warnings.warn(f"the compiled projection is not used: {disagreement}", RuntimeWarning, stacklevel=2)
+        return None
+    return kernel
+
+
+def _disagreement(kernel) -> str:
+    """'' if kernel gives foot()'s tuples bit for bit on a test window, else the first point where it does not."""
+    s = np.linspace(0.0, 62.0, 32)
+    psi = 0.3 + 0.012 * s + 0.0004 * s * s
+    matrix = np.array([40.0 + 30.0 * np.sin(psi) + 0.9 * s, -5.0 - 30.0 * np.cos(psi), psi,
+                       0.012 + 0.0008 * s, s, 8.0 + 0.05 * s, 0.05 + 0.0 * s])
+    interpreted, bound = PreparedWindow(matrix, compiled=False), _bind(kernel, matrix)
+    for px in np.linspace(-20.0, 130.0, 31).tolist():
+        for py in np.linspace(-60.0, 40.0, 21).tolist():
+            expected, got = foot(interpreted, px, py), finish(bound(px, py), px, py)
+            if got != expected:
+                return f"at ({px}, {py}) it gives {got}, the interpreted path {expected}"
+    return ""
 
 
 def _hermite(seg: tuple[float, ...], t: float, order: int = 2) -> list[tuple[float, float]]:
@@ -300,49 +366,6 @@ def _hermite(seg: tuple[float, ...], t: float, order: int = 2) -> list[tuple[flo
              w[0] * y0 + w[1] * my0 + w[2] * y1 + w[3] * my1) for w in weights[:order + 1]]
 
 
-def _refine(seg: tuple[float, ...], t: float, px: float, py: float) -> float:
-    """Newton iterations for the foot parameter on the Hermite curve of a segment.
-
-    The Hermite weights are written out (the same expressions as _hermite) since
-    this is the projection's inner loop.
-    """
-    x0, y0, mx0, my0, x1, y1, mx1, my1 = seg
-    for _ in range(NEWTON_ITERATIONS):
-        t2 = t * t
-        t3 = t2 * t           # t * t * t
-        w0, w1, w2, w3 = 2.0 * t3 - 3.0 * t2 + 1.0, t3 - 2.0 * t2 + t, -2.0 * t3 + 3.0 * t2, t3 - t2
-        ex = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1 - px
-        ey = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1 - py
-        w0, w1, w2, w3 = 6.0 * t2 - 6.0 * t, 3.0 * t2 - 4.0 * t + 1.0, -6.0 * t2 + 6.0 * t, 3.0 * t2 - 2.0 * t
-        dx = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
-        dy = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
-        w0, w1, w2, w3 = 12.0 * t - 6.0, 6.0 * t - 4.0, -12.0 * t + 6.0, 6.0 * t - 2.0
-        ddx = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
-        ddy = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
-        slope = dx * dx + dy * dy + ex * ddx + ey * ddy
-        if slope <= 0.0:
-            break
-        new_t = t - (ex * dx + ey * dy) / slope
-        # min(1.0, max(0.0, new_t)) without the two calls (same result, NaN and -0.0 included)
-        new_t = (new_t if new_t < 1.0 else 1.0) if new_t > 0.0 else 0.0
-        if abs(new_t - t) < 1e-13:
-            return new_t
-        t = new_t
-    return t
-
-
-def _extrapolate(w: PreparedWindow, end: int, px: float, py: float) -> tuple | None:
-    """foot() on the tangent line at window point `end` (0 or -1) if the point lies beyond it."""
-    heading = w.psi[end]
-    tx, ty = math.cos(heading), math.sin(heading)
-    along = (px - w.x[end]) * tx + (py - w.y[end]) * ty
-    if (end == 0 and along >= 0.0) or (end == -1 and along <= 0.0):
-        return None
-    offset = -(px - w.x[end]) * ty + (py - w.y[end]) * tx
-    return (w.s[end] + along, w.x[end] + along * tx, w.y[end] + along * ty, offset, heading,
-            w.kappa[end], 0.0, w.v[end], w.a[end], -1 if end == 0 else 1)
-
-
 def foot(w: PreparedWindow, px: float, py: float, slot: int = -1) -> tuple:
     """project() as a plain tuple, for the controllers' per-tick path.
 
@@ -353,32 +376,32 @@ def foot(w: PreparedWindow, px: float, py: float, slot: int = -1) -> tuple:
     Returns:
         (s, x, y, offset, psi_path, kappa, dkappa_ds, v, a, extrapolated): the Projection's fields.
     """
+    if w.compiled is not None:
+        return finish(w.compiled(px, py), px, py)
     i, t = w.tracked_chord(px, py, slot) if slot >= 0 else w.nearest_chord(px, py)
     if i == 0 and t == 0.0:
-        beyond = _extrapolate(w, 0, px, py)
-        if beyond is not None:
-            return beyond
+        fields = hermite.beyond(0, px, py, w.x, w.y, w.s, w.psi, w.kappa, w.v, w.a)
+        if fields[9]:
+            return fields[:10]
     if i == w.chords - 1 and t == 1.0:
-        beyond = _extrapolate(w, -1, px, py)
-        if beyond is not None:
-            return beyond
+        fields = hermite.beyond(-1, px, py, w.x, w.y, w.s, w.psi, w.kappa, w.v, w.a)
+        if fields[9]:
+            return fields[:10]
     seg = w._segments[i] or w.segment(i)
-    t = _refine(seg, t, px, py)
-    x0, y0, mx0, my0, x1, y1, mx1, my1 = seg
-    t2 = t * t
-    t3 = t2 * t               # t * t * t
-    w0, w1, w2, w3 = 2.0 * t3 - 3.0 * t2 + 1.0, t3 - 2.0 * t2 + t, -2.0 * t3 + 3.0 * t2, t3 - t2
-    x = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
-    y = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
-    w0, w1, w2, w3 = 6.0 * t2 - 6.0 * t, 3.0 * t2 - 4.0 * t + 1.0, -6.0 * t2 + 6.0 * t, 3.0 * t2 - 2.0 * t
-    dx = w0 * x0 + w1 * mx0 + w2 * x1 + w3 * mx1
-    dy = w0 * y0 + w1 * my0 + w2 * y1 + w3 * my1
-    norm = max(math.hypot(dx, dy), 1e-300)
-    s, psi, kappa, v, a, j = w.s, w.psi, w.kappa, w.v, w.a, i + 1
-    step, rise = s[j] - s[i], kappa[j] - kappa[i]
-    return (s[i] + t * step, x, y, (dx * (py - y) - dy * (px - x)) / norm,
-            psi[i] + t * (psi[j] - psi[i]), kappa[i] + t * rise, rise / step,
-            v[i] + t * (v[j] - v[i]), a[i] + t * (a[j] - a[i]), 0)
+    return finish(hermite.evaluate(seg, hermite.refine(seg, t, px, py), i, w.s, w.psi, w.kappa, w.v, w.a), px, py)
+
+
+def finish(fields: tuple, px: float, py: float) -> tuple:
+    """foot()'s tuple from controllers.road.hermite's foot fields: the offset from the tangent inside the window.
+
+    math.hypot stays here, in the interpreter, for both paths: CPython's
+    algorithm is not libm's, and a compiled copy would differ in the last bit.
+    """
+    if fields[9]:
+        return fields[:10]
+    s, x, y, _, psi, kappa, dkappa, v, a, _, dx, dy = fields
+    return (s, x, y, (dx * (py - y) - dy * (px - x)) / max(math.hypot(dx, dy), 1e-300), psi, kappa, dkappa,
+            v, a, 0)
 
 
 def project(window: TrajectoryWindow | PreparedWindow, px: float, py: float) -> Projection:

@@ -95,3 +95,26 @@ def test_an_output_reader_takes_the_printed_figures():
 def test_an_output_reader_finds_nothing_in_a_changed_format():
     assert run_all_rows.zenoh("ratio: 1.2\n") == []
     assert run_all_rows.closed_loop("") == [] and run_all_rows.master_overhead("") == []
+
+
+def closed_loop_section(mode: str, controller: float, untimed: float, rtf: int) -> str:
+    """One projection's table as bench_closed_loop prints it."""
+    return (f"-- projection: {mode}\npart                                   us/tick   share\n"
+            f"FMU step (vehicle)                        5.45     12%\n"
+            f"controller (every tick)                  {controller:5.2f}     59%\n"
+            f"planner (amortized, 1 in 10 ticks)        7.02     16%\n"
+            f"master overhead                           5.75     13%\ntotal                                    43.98\n"
+            f"untimed runs: {untimed:.2f} us/tick (cpu clock), real-time factor {rtf}x; target 500x; ratio 0.4\n")
+
+
+CLOSED_LOOP_OUTPUT = ("backstepping + planner (lane_keeping) + Vehicle8DOF (platform FMU host, shim path)\n"
+                      + closed_loop_section("interpreted", 25.76, 43.04, 232)
+                      + closed_loop_section("compiled", 12.96, 19.50, 513))
+
+
+def test_the_closed_loop_reader_gives_one_row_per_projection():
+    interpreted, compiled = run_all_rows.closed_loop(CLOSED_LOOP_OUTPUT)
+    assert interpreted["measure"].endswith("interpreted projection") and interpreted["met"] is False
+    assert interpreted["figure"] == ("43.0 µs/tick = 232x real time "
+                                     "(controller 25.8, planner 7.0, master 5.8, FMU 5.5 µs)")
+    assert compiled["measure"].endswith("compiled projection (numba)") and compiled["met"] is True

@@ -56,7 +56,7 @@ def test_nearest_chord_is_the_global_minimum_bit_for_bit():
     rng = np.random.default_rng(7)
     checked = 0
     for window in random_windows(rng):
-        prepared = PreparedWindow(window)
+        prepared = PreparedWindow(window, compiled=False)     # the interpreted path's search
         lo, hi = np.min(window.x), np.max(window.x)
         bottom, top = np.min(window.y), np.max(window.y)
         points = [(rng.uniform(lo - 5, hi + 5), rng.uniform(bottom - 5, top + 5)) for _ in range(150)]
@@ -75,7 +75,7 @@ def test_tracked_chord_follows_moving_points_bit_for_bit():
     rng = np.random.default_rng(5)
     renewed = 0
     for window in random_windows(rng):
-        prepared = PreparedWindow(window)
+        prepared = PreparedWindow(window, compiled=False)
         for slot in range(4):     # each slot a point walking along the window, with jumps now and then
             k = int(rng.integers(0, 60))
             px, py = window.x[k], window.y[k]
@@ -94,15 +94,20 @@ def test_nearest_chord_tie_goes_to_the_first_chord_whatever_the_hint():
     window = TrajectoryWindow(x=np.array([-1.0, 0.0, 1.0]), y=np.array([1.0, 0.0, 1.0]),
                               psi=np.array([-0.8, 0.0, 0.8]), kappa=np.zeros(3), s=np.array([0.0, 1.5, 3.0]),
                               v=np.ones(3), a=np.zeros(3))
-    prepared = PreparedWindow(window)
+    prepared = PreparedWindow(window, compiled=False)
     for hint in (0, 1):
         assert prepared.nearest_chord(0.0, 1.0, hint) == (0, 0.5)
 
 
-def test_projection_fields_match_the_reference_on_every_window():
+@pytest.mark.parametrize("compiled", [False, True], ids=["interpreted", "compiled"])
+def test_projection_fields_match_the_reference_on_every_window(compiled, jit_mode):
+    if compiled:
+        pytest.importorskip("numba")
+    jit_mode("on" if compiled else "off")
     rng = np.random.default_rng(11)
     for window in random_windows(rng):
-        prepared = PreparedWindow(window)
+        prepared = PreparedWindow(window, compiled=compiled)
+        assert (prepared.compiled is not None) == compiled
         for k in rng.integers(0, 64, 40):
             px, py = window.x[k] + rng.normal(0, 0.5), window.y[k] + rng.normal(0, 0.5)
             expected = project_reference(window, px, py)

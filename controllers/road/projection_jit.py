@@ -1,0 +1,63 @@
+"""The window projection compiled by numba (the `jit` extra): the same bits as the interpreted path.
+
+Imported only by controllers.road.projection, and only when numba is
+installed and COSIM_JIT does not turn it off. controllers.road.hermite's
+functions are compiled from their own source; the nearest chord is a plain
+scan of every chord (first index on ties), which is the answer the
+interpreted path's certified search proves without measuring them all, and
+in compiled code the scan of a 63-chord window is cheaper than the proof.
+Compiled functions are cached on disk by numba (`cache=True`): the first run
+on a machine compiles them (about a second), later runs load them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+
+from controllers.road import hermite
+
+_compile = numba.njit(cache=True, nogil=True)
+_segment = _compile(hermite.segment)
+_refine = _compile(hermite.refine)
+_evaluate = _compile(hermite.evaluate)
+_beyond = _compile(hermite.beyond)
+
+
+@_compile
+def foot_fields(window, px, py):
+    """controllers.road.hermite's foot fields of (px, py) on a window.
+
+    Args:
+        window: a (10, points) float64 array, rows x, y, s, psi, kappa, v, a, then per chord
+            (first points - 1 columns) dx, dy and max(squared length, 1e-300);
+        px, py: the point.
+    """
+    xs, ys, s, psi, kappa, v, a = window[0], window[1], window[2], window[3], window[4], window[5], window[6]
+    chords = window.shape[1] - 1
+    dx, dy, length2 = window[7], window[8], window[9]
+    best_d = math.inf
+    i = 0
+    t = 0.0
+    for k in range(chords):      # PreparedWindow.chord_distance2 for every chord
+        x0 = xs[k]
+        y0 = ys[k]
+        tk = ((px - x0) * dx[k] + (py - y0) * dy[k]) / length2[k]
+        tk = 0.0 if tk < 0.0 else (1.0 if tk > 1.0 else tk)
+        ex = x0 + tk * dx[k] - px
+        ey = y0 + tk * dy[k] - py
+        d = ex * ex + ey * ey
+        if d < best_d:
+            best_d, i, t = d, k, tk
+    if i == 0 and t == 0.0:
+        fields = _beyond(0, px, py, xs, ys, s, psi, kappa, v, a)
+        if fields[9] != 0:
+            return fields
+    if i == chords - 1 and t == 1.0:
+        fields = _beyond(-1, px, py, xs, ys, s, psi, kappa, v, a)
+        if fields[9] != 0:
+            return fields
+    seg = _segment(xs, ys, s, psi, i)
+    return _evaluate(seg, _refine(seg, t, px, py), i, s, psi, kappa, v, a)
+

@@ -1,0 +1,111 @@
+"""The compiled window projection (numba, the `jit` extra) against the interpreted one, bit for bit.
+
+Unit level: every field of foot() on random windows, on their vertices, far
+off and beyond both ends. Controller level: a backstepping closed loop with
+either path (the jit_mode fixture: tests/controllers/conftest.py). Run level: `cosim run` over Zenoh with the compiled path gives
+the same signals.csv bytes as in-process without it. And the switch: COSIM_JIT
+off, on without numba (a clear error), a disagreeing kernel (a warning, then
+the interpreted path).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from controllers.backstepping.component import BacksteppingController
+from controllers.linear_plant import LinearPlant
+from controllers.road.projection import PreparedWindow, foot
+from controllers.vehicle_params import VehicleParams
+from tests.controllers.backstepping.test_fast_paths import random_windows
+from tests.helpers.closed_loop import CirclePath, make_window
+
+numba = pytest.importorskip("numba")
+
+
+def test_compiled_foot_equals_the_interpreted_one_bit_for_bit(jit_mode):
+    assert jit_mode("on") is not None
+    rng = np.random.default_rng(21)
+    compared = beyond = 0
+    for window in random_windows(rng):
+        compiled, interpreted = PreparedWindow(window), PreparedWindow(window, compiled=False)
+        assert compiled.compiled is not None and interpreted.compiled is None
+        lo, hi = np.min(window.x) - 30, np.max(window.x) + 30
+        bottom, top = np.min(window.y) - 30, np.max(window.y) + 30
+        points = [(rng.uniform(lo, hi), rng.uniform(bottom, top)) for _ in range(300)]
+        points += [(float(window.x[k]), float(window.y[k])) for k in range(64)]       # on the vertices
+        points += [(window.x[k] + rng.normal(0, 0.2), window.y[k] + rng.normal(0, 0.2))
+                   for k in rng.integers(0, 64, 200)]
+        for px, py in points:
+            px, py = float(px), float(py)
+            expected = foot(interpreted, px, py, 0)
+            assert foot(compiled, px, py, 0) == expected, (px, py)
+            assert foot(compiled, px, py) == foot(interpreted, px, py), (px, py)
+            compared += 1
+            beyond += expected[9] != 0
+    assert compared > 5000 and beyond > 200        # both ends' extrapolation reached
+
+
+def test_backstepping_closed_loop_is_the_same_on_both_paths(jit_mode):
+    def run() -> list[dict]:
+        controller = BacksteppingController(lateral_law="feedforward", adaptive=True, mu0=0.6)
+        plant = LinearPlant(VehicleParams(), substeps=2, vx0=9.0, y0=0.4, mu=0.9)
+        path, outputs = CirclePath(40.0), []
+        for k in range(1500):
+            state = plant.outputs()
+            if k % 10 == 0:
+                signals = make_window(path, path.sigma_of(state["x"], state["y"]) - 5.0, v=10.0).to_signals("ref")
+            out = controller.step(0.01 * k, state | signals)
+            outputs.append(out)
+            plant.step(0.01, out["delta"], out["torque"])
+        return outputs
+
+    assert jit_mode("off") is None
+    interpreted = run()
+    assert jit_mode("on") is not None
+    assert run() == interpreted
+
+
+def test_zenoh_run_with_the_compiled_path_gives_the_in_process_bytes(tmp_path):
+    def cosim(transport: str, jit: str) -> bytes:
+        out = tmp_path / f"{transport}-{jit}"
+        env = dict(os.environ, COSIM_JIT=jit)
+        subprocess.run([sys.executable, "-m", "cosim.cli.app", "run", "lane_change", "--transport", transport,
+                        "--set", "duration=4", "--no-figures", "--out", str(out)],
+                       env=env, check=True, capture_output=True, timeout=120)
+        return (out / "signals.csv").read_bytes()
+
+    assert cosim("zenoh", "on") == cosim("inproc", "off")
+
+
+def test_off_keeps_the_interpreted_path(jit_mode):
+    assert jit_mode("off") is None
+    assert PreparedWindow(make_window(CirclePath(30.0), 0.0)).compiled is None
+
+
+def test_on_without_numba_is_a_clear_error(jit_mode, monkeypatch):
+    import controllers.road
+
+    monkeypatch.setitem(sys.modules, "controllers.road.projection_jit", None)   # as if numba were missing
+    monkeypatch.delattr(controllers.road, "projection_jit", raising=False)
+    with pytest.raises(ImportError, match=r"COSIM_JIT=on: the compiled projection needs numba "
+                                          r"\(pip install 'cosim\[jit\]'\)"):
+        jit_mode("on")
+    assert jit_mode("auto") is None
+
+
+def test_a_kernel_that_disagrees_is_not_used(jit_mode, monkeypatch):
+    from controllers.road import projection_jit
+    exact = projection_jit.foot_fields
+
+    def off_by_one_bit(window, px, py):
+        fields = exact(window, px, py)
+        return (np.nextafter(fields[0], np.inf), *fields[1:])
+
+    monkeypatch.setattr(projection_jit, "foot_fields", off_by_one_bit)
+    with pytest.warns(RuntimeWarning, match=r"the compiled projection is not used: at \(-20.0, -60.0\) it gives"):
+        assert jit_mode("auto") is None
