@@ -1,7 +1,9 @@
 """Cost per tick of the in-process closed loop: Vehicle8DOF FMU, controller, planner, master.
 
 Writes a scenario (two-lane road with a 150 m bend, 10 ms tick, the planner at
-10 Hz, lane keeping or lane change), then runs it through the real master
+10 Hz, lane keeping or lane change; like the Satory scenarios it leaves the
+planner's alternative window out of the record, so the planner, told that
+nobody reads it, does not plan it: `--record-alternative` puts it back), then runs it through the real master
 (`cosim.engine.master.Master` over `FmuComponent` and `InprocComponent` hosts, the
 hosts `cosim run --transport inproc` uses, no recorder) for N simulated
 seconds, in alternating repetitions of two kinds:
@@ -27,7 +29,7 @@ functions with the most self time, and `--profile-out FILE` (.html or text) keep
 Run: .venv/bin/python benchmarks/bench_closed_loop.py [--seconds 20] [--repeats 5] [--clock cpu|wall]
      [--controller backstepping|feedforward|stanley|pure_pursuit] [--manoeuvre lane_keeping|lane_change]
      [--profile] [--profile-out FILE] [--profiler pyinstrument|py-spy] [--fmu-host platform|fmpy]
-     [--projection interpreted|compiled|both]
+     [--projection interpreted|compiled|both] [--record-alternative]
 
 `--projection` picks the controllers' window projection (controllers.road.projection): the
 interpreted one, the one numba compiles (the `jit` extra; COSIM_JIT), or both in alternating runs,
@@ -86,12 +88,14 @@ MANOEUVRES = {
 }
 
 
-def write_scenario(folder: Path, seconds: float, controller: str, manoeuvre: str) -> Path:
+def write_scenario(folder: Path, seconds: float, controller: str, manoeuvre: str,
+                   record_alternative: bool = False) -> Path:
     """The benchmark's scenario YAML in `folder`; returns its path.
 
     Args:
         folder: where to write it; seconds: duration;
-        controller: a CONTROLLERS key; manoeuvre: a MANOEUVRES key.
+        controller: a CONTROLLERS key; manoeuvre: a MANOEUVRES key;
+        record_alternative: record (so have the planner compute) its alternative window `alt_*`.
     """
     python, parameters = CONTROLLERS[controller]
     scenario = {
@@ -108,6 +112,8 @@ def write_scenario(folder: Path, seconds: float, controller: str, manoeuvre: str
         "connections": ["vehicle -> controller", "vehicle -> planner", "planner -> controller",
                         "controller.delta -> vehicle.delta", "controller.torque -> vehicle.torque"],
     }
+    if not record_alternative:      # as the Satory scenarios: nothing reads it, so the planner does not plan it
+        scenario["record"] = {"exclude": ["planner.alt_*"]}
     path = folder / "bench_closed_loop.yaml"
     path.write_text(yaml.safe_dump(scenario, sort_keys=False))
     return path
@@ -259,6 +265,9 @@ def main() -> None:
     parser.add_argument("--projection", choices=sorted(PROJECTIONS), default=DEFAULT_PROJECTION,
                         help="the controllers' window projection: interpreted, compiled (numba, the jit "
                              "extra) or both, alternating (default: both when numba is installed)")
+    parser.add_argument("--record-alternative", action="store_true",
+                        help="record the planner's alternative window (planner.alt_*), which the Satory "
+                             "scenarios leave out, so that the planner plans it at every step")
     parser.add_argument("--fmu-host", choices=FMU_HOSTS, default="platform",
                         help="platform: cosim's FmuComponent as runs use it (the C stepping shim, 1 call "
                              "per step); fmpy: its per-call path (3 ctypes calls, as without a compiler)")
@@ -272,7 +281,7 @@ def main() -> None:
     modes = PROJECTIONS[args.projection]
     with tempfile.TemporaryDirectory() as tmp:
         prepared = prepare_run(load_scenario(write_scenario(Path(tmp), args.seconds, args.controller,
-                                                            args.manoeuvre)))
+                                                            args.manoeuvre, args.record_alternative)))
         ticks, tick = prepared.scenario.total_ticks, prepared.scenario.tick
         plain, timed = {mode: [] for mode in modes}, {mode: [] for mode in modes}
         for _ in range(args.repeats):

@@ -29,8 +29,8 @@ import numpy as np
 
 from cosim.component import ComponentError, Port, Value, is_frozen
 from controllers.trajectory import FIELDS, TrajectoryWindow, window_ports
-from controllers.road.projection import (PreparedWindow, WindowError, compiled_kernel, foot, is_empty,
-                                           validate_window)
+from controllers.road.projection import (PreparedWindow, WindowError, cg_and_preview, compiled_kernel,
+                                           is_empty, validate_window)
 
 PLANT_INPUTS: tuple[Port, ...] = (
     Port("x", unit="m", description="CG world x"),
@@ -146,10 +146,7 @@ def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,
         from the CG's foot to the preview point's and the preview foot's offset from
         the CG foot's tangent (left positive); see the module docstring.
     """
-    at_cg = foot(w, x, y, 0)
-    if w.compiled is None and w.best[1] < 0:   # a new window: start the preview point's search ls ahead
-        w.best[1] = w.best[0] + round(ls / w.mean_chord)
-    preview = foot(w, x + ls * math.cos(psi), y + ls * math.sin(psi), 1)
+    at_cg, preview = cg_and_preview(w, x, y, psi, ls)
     psi_l = (psi - preview[4] + _PI) % _TWO_PI - _PI     # wrap_angle, inlined
     y_l, h_cg = preview[3], at_cg[4]
     turn = (preview[4] - h_cg + _PI) % _TWO_PI - _PI

@@ -32,6 +32,8 @@ from controllers.road import hermite
 from controllers.trajectory import FIELDS, TrajectoryWindow
 
 JIT_VARIABLE = "COSIM_JIT"   # auto (default): compiled when numba is installed; off; on: numba required
+JIT_MODES = {"auto": "auto", "": "auto", "on": "on", "1": "on", "yes": "on", "true": "on",
+             "off": "off", "0": "off", "no": "off", "false": "off"}
 
 
 class WindowError(ValueError):
@@ -110,7 +112,8 @@ class PreparedWindow:
     such as a controller's CG and preview point while the window is the same.
 
     `compiled` is foot()'s compiled path for this window (compiled_kernel()
-    bound to the window's arrays), or None for the interpreted one; the
+    bound to the window's arrays) and `compiled_pair` cg_and_preview()'s, or
+    None for the interpreted one; the
     search state above (chords, reach, tracking slots) exists only on the
     interpreted path.
 
@@ -124,7 +127,9 @@ class PreparedWindow:
         matrix = window if isinstance(window, np.ndarray) else np.array(
             [getattr(window, name) for name, _, _ in FIELDS], dtype=np.float64)
         kernel = compiled_kernel() if compiled else None
-        self.compiled = None if kernel is None else _bind(kernel, matrix)
+        self.compiled = self.compiled_pair = None
+        if kernel is not None:
+            self.compiled, self.compiled_pair = _bind(kernel, matrix)
         self.x, self.y, self.psi, self.kappa, self.s, self.v, self.a = matrix.tolist()
         self.chords = len(self.s) - 1
         self._segments: list[tuple | None] = [None] * self.chords
@@ -302,37 +307,39 @@ class PreparedWindow:
         return seg
 
 
-def _bind(kernel, matrix: np.ndarray) -> functools.partial:
-    """kernel(px, py) on the window of `matrix`, packed as projection_jit.foot_fields reads it."""
-    packed = np.zeros((10, matrix.shape[1]))
-    packed[:7] = matrix[[0, 1, 4, 2, 3, 5, 6]]      # FIELDS order x, y, psi, kappa, s, v, a -> x, y, s, psi, ...
-    delta = matrix[:2, 1:] - matrix[:2, :-1]
-    square = delta * delta
-    packed[7:9, :-1] = delta
-    packed[9, :-1] = np.maximum(square[0] + square[1], 1e-300)
-    return functools.partial(kernel, packed)
+def _bind(kernel, matrix: np.ndarray) -> tuple[functools.partial, functools.partial]:
+    """kernel's foot_fields and cg_and_preview_fields on the window of `matrix` (packed once for both)."""
+    window = kernel.pack(np.ascontiguousarray(matrix, dtype=np.float64))
+    return functools.partial(kernel.foot_fields, window), functools.partial(kernel.cg_and_preview_fields, window)
 
 
 @functools.cache
 def compiled_kernel():
-    """controllers.road.projection_jit.foot_fields, or None for the interpreted path.
+    """The controllers.road.projection_jit module (foot_fields, pack), or None for the interpreted path.
 
-    None when COSIM_JIT is 0/off, when numba is not installed (COSIM_JIT=on
-    makes that an error), or when the compiled code disagrees with the
+    None when COSIM_JIT is 0/off, when numba is not installed or does not
+    load (COSIM_JIT=on makes either an error; a numba that fails to load
+    warns), or when the compiled code disagrees with the
     interpreted path in any bit on a built-in set of points (a warning says
     so). The first call imports numba and loads (or compiles) the code.
     """
-    mode = os.environ.get(JIT_VARIABLE, "auto").strip().lower()
-    if mode in ("0", "off", "no", "false"):
+    value = os.environ.get(JIT_VARIABLE, "auto")
+    mode = JIT_MODES.get(value.strip().lower())
+    if mode is None:
+        raise ValueError(f"{JIT_VARIABLE}={value!r}: expected auto, on or off")
+    if mode == "off":
         return None
     try:
         from controllers.road import projection_jit
-    except ImportError as error:
-        if mode in ("1", "on", "yes", "true"):
-            raise ImportError(f"{JIT_VARIABLE}={mode}: the compiled projection needs numba "
+    except Exception as error:       # ImportError: no numba; anything else: a numba that does not load
+        if mode == "on":
+            raise ImportError(f"{JIT_VARIABLE}={value}: the compiled projection needs numba "
                               f"(pip install 'cosim[jit]'): {error}") from None
+        if not isinstance(error, ImportError):
+            warnings.warn(f"the compiled projection is not used: numba does not load: {error!r}",
+                          RuntimeWarning, stacklevel=2)
         return None
-    kernel = projection_jit.foot_fields
+    kernel = projection_jit
     disagreement = _disagreement(kernel)
     if disagreement:
         warnings.warn(f"the compiled projection is not used: {disagreement}", RuntimeWarning, stacklevel=2)
@@ -346,12 +353,17 @@ def _disagreement(kernel) -> str:
     psi = 0.3 + 0.012 * s + 0.0004 * s * s
     matrix = np.array([40.0 + 30.0 * np.sin(psi) + 0.9 * s, -5.0 - 30.0 * np.cos(psi), psi,
                        0.012 + 0.0008 * s, s, 8.0 + 0.05 * s, 0.05 + 0.0 * s])
-    interpreted, bound = PreparedWindow(matrix, compiled=False), _bind(kernel, matrix)
+    interpreted, (bound, pair) = PreparedWindow(matrix, compiled=False), _bind(kernel, matrix)
     for px in np.linspace(-20.0, 130.0, 31).tolist():
         for py in np.linspace(-60.0, 40.0, 21).tolist():
             expected, got = foot(interpreted, px, py), finish(bound(px, py), px, py)
             if got != expected:
                 return f"at ({px}, {py}) it gives {got}, the interpreted path {expected}"
+            cg, preview, ax, ay = pair(px, py, 0.7, 6.0)
+            expected = (foot(interpreted, px, py), foot(interpreted, px + 6.0 * math.cos(0.7),
+                                                        py + 6.0 * math.sin(0.7)))
+            if (finish(cg, px, py), finish(preview, ax, ay)) != expected:
+                return f"at ({px}, {py}) cg_and_preview disagrees with two foot() calls"
     return ""
 
 
@@ -389,6 +401,22 @@ def foot(w: PreparedWindow, px: float, py: float, slot: int = -1) -> tuple:
             return fields[:10]
     seg = w._segments[i] or w.segment(i)
     return finish(hermite.evaluate(seg, hermite.refine(seg, t, px, py), i, w.s, w.psi, w.kappa, w.v, w.a), px, py)
+
+
+def cg_and_preview(w: PreparedWindow, x: float, y: float, psi: float, ls: float) -> tuple[tuple, tuple]:
+    """foot() of the CG (tracking slot 0) and of the preview point ls ahead along psi (slot 1).
+
+    Args:
+        w: a PreparedWindow of a valid, non-empty window; x, y, psi: the CG and the heading;
+        ls: preview distance [m].
+    """
+    if w.compiled_pair is not None:
+        at_cg, preview, px, py = w.compiled_pair(x, y, psi, ls)
+        return finish(at_cg, x, y), finish(preview, px, py)
+    at_cg = foot(w, x, y, 0)
+    if w.best[1] < 0:       # a new window: start the preview point's search about ls ahead of the CG's
+        w.best[1] = w.best[0] + round(ls / w.mean_chord)
+    return at_cg, foot(w, x + ls * math.cos(psi), y + ls * math.sin(psi), 1)
 
 
 def finish(fields: tuple, px: float, py: float) -> tuple:

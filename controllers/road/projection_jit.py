@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 
 import numba
+import numpy as np
 
 from controllers.road import hermite
 
@@ -23,6 +24,26 @@ _segment = _compile(hermite.segment)
 _refine = _compile(hermite.refine)
 _evaluate = _compile(hermite.evaluate)
 _beyond = _compile(hermite.beyond)
+
+
+@_compile
+def pack(matrix):
+    """foot_fields' window from a (7, points) matrix in controllers.trajectory.FIELDS order.
+
+    Rows x, y, s, psi, kappa, v, a, then dx, dy and max(dx * dx + dy * dy, 1e-300)
+    per chord (as PreparedWindow computes them), the last column of those three 0.
+    """
+    points = matrix.shape[1]
+    window = np.zeros((10, points))
+    for row, field in enumerate((0, 1, 4, 2, 3, 5, 6)):     # FIELDS: x, y, psi, kappa, s, v, a
+        window[row] = matrix[field]
+    for k in range(points - 1):
+        dx = matrix[0, k + 1] - matrix[0, k]
+        dy = matrix[1, k + 1] - matrix[1, k]
+        window[7, k] = dx
+        window[8, k] = dy
+        window[9, k] = max(dx * dx + dy * dy, 1e-300)
+    return window
 
 
 @_compile
@@ -61,3 +82,11 @@ def foot_fields(window, px, py):
     seg = _segment(xs, ys, s, psi, i)
     return _evaluate(seg, _refine(seg, t, px, py), i, s, psi, kappa, v, a)
 
+
+
+@_compile
+def cg_and_preview_fields(window, x, y, psi, ls):
+    """foot_fields of (x, y) and of the point ls ahead along psi, and that point's coordinates."""
+    px = x + ls * math.cos(psi)
+    py = y + ls * math.sin(psi)
+    return foot_fields(window, x, y), foot_fields(window, px, py), px, py

@@ -19,7 +19,7 @@ import pytest
 
 from controllers.backstepping.component import BacksteppingController
 from controllers.linear_plant import LinearPlant
-from controllers.road.projection import PreparedWindow, foot
+from controllers.road.projection import PreparedWindow, cg_and_preview, foot
 from controllers.vehicle_params import VehicleParams
 from tests.controllers.backstepping.test_fast_paths import random_windows
 from tests.helpers.closed_loop import CirclePath, make_window
@@ -45,6 +45,8 @@ def test_compiled_foot_equals_the_interpreted_one_bit_for_bit(jit_mode):
             expected = foot(interpreted, px, py, 0)
             assert foot(compiled, px, py, 0) == expected, (px, py)
             assert foot(compiled, px, py) == foot(interpreted, px, py), (px, py)
+            psi, ls = float(rng.uniform(-4.0, 4.0)), float(rng.uniform(0.5, 15.0))
+            assert cg_and_preview(compiled, px, py, psi, ls) == cg_and_preview(interpreted, px, py, psi, ls)
             compared += 1
             beyond += expected[9] != 0
     assert compared > 5000 and beyond > 200        # both ends' extrapolation reached
@@ -96,6 +98,11 @@ def test_on_without_numba_is_a_clear_error(jit_mode, monkeypatch):
                                           r"\(pip install 'cosim\[jit\]'\)"):
         jit_mode("on")
     assert jit_mode("auto") is None
+
+
+def test_an_unknown_mode_names_the_variable_and_value(jit_mode):
+    with pytest.raises(ValueError, match=r"COSIM_JIT='fast': expected auto, on or off"):
+        jit_mode("fast")
 
 
 def test_a_kernel_that_disagrees_is_not_used(jit_mode, monkeypatch):
