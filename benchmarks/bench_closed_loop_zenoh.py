@@ -2,12 +2,14 @@
 
 satory_nominal (Vehicle8DOF FMU in the master, backstepping controller every
 tick, planner every 10 ticks) for `--seconds` of simulated time, in
-alternating repetitions of four cases measured in the same run:
+alternating repetitions of five cases measured in the same run:
 
 - `inproc loop`: the master over the in-process hosts (`--transport inproc`),
   no observers: the in-process tick;
 - `zenoh loop`: the master over the Zenoh hosts (controller and planner in
   their own processes), no observers: the Zenoh tick;
+- `zenoh loop, planner inproc`: the same with the planner hosted in the
+  master's process (`--place planner=inproc`), the controller in its own;
 - `cosim run zenoh`: `run_scenario(..., transport="zenoh")` as `cosim run`
   does it (recorder with its writer process, live publisher), tick loop only;
 - `raw round trip`: a 100-byte put/subscribe round trip between this process
@@ -62,8 +64,9 @@ TARGET = 1.25
 RAW_BLOCK = 2000
 CPU_INPROC, CPU_ZENOH = "inproc loop, CPU", "zenoh loop, CPU of all processes"
 CPU_RAW = "raw round trip, CPU of both processes"
-CASES = ("inproc loop", "zenoh loop", "cosim run zenoh", "raw round trip", CPU_INPROC, CPU_ZENOH,
-         CPU_RAW)
+PLANNER_IN_MASTER = "zenoh loop, planner inproc"
+CASES = ("inproc loop", "zenoh loop", PLANNER_IN_MASTER, "cosim run zenoh", "raw round trip", CPU_INPROC,
+         CPU_ZENOH, CPU_RAW)
 
 
 def prepared_run(seconds: float):
@@ -125,16 +128,21 @@ def inproc_loop(prepared) -> tuple[float, float, list[float]]:
                        [os.getpid()])
 
 
-def zenoh_loop(prepared, hosts_class=None,
-               endpoint: str | None = None) -> tuple[float, float, list[float]]:
-    """One run with the Python components in their own processes: (wall seconds per tick,
-    CPU seconds per tick of the master and the component processes, final store)."""
+def zenoh_loop(prepared, hosts_class=None, endpoint: str | None = None,
+               in_master: tuple[str, ...] = ()) -> tuple[float, float, list[float]]:
+    """One run with the Python components in their own processes, but those named in `in_master`
+    (in-process hosts, as `--place NAME=inproc`): (wall seconds per tick, CPU seconds per tick of
+    the master and the component processes, final store)."""
+    from cosim.transport.inproc import InprocComponent
     from cosim.transport.zenoh import ZenohComponents
 
     cls = hosts_class or ZenohComponents
-    with cls(prepared.launches, run_id=f"bench{uuid.uuid4().hex[:8]}", endpoint=endpoint) as remote:
+    own = [launch for launch in prepared.launches if launch.name not in in_master]
+    with cls(own, run_id=f"bench{uuid.uuid4().hex[:8]}", endpoint=endpoint) as remote:
         pids = [os.getpid(), *remote.pids.values()]
-        return _timed_loop(_master(prepared, remote.components), pids)
+        hosts = dict(remote.components)
+        hosts.update({l.name: InprocComponent(l) for l in prepared.launches if l.name in in_master})
+        return _timed_loop(_master(prepared, hosts), pids)
 
 
 def cosim_run_zenoh(prepared) -> float:
@@ -166,9 +174,13 @@ def measure(seconds: float, repeats: int, hosts_class=None, endpoint_host: str =
             tick, cpu, zenoh_store = zenoh_loop(prepared, hosts_class, endpoint)
             samples["zenoh loop"].append(tick)
             samples[CPU_ZENOH].append(cpu)
-            if zenoh_store != inproc_store:
-                differ = sum(a != b for a, b in zip(zenoh_store, inproc_store))
-                raise SystemExit(f"CHECK FAILED: zenoh and inproc signal stores differ ({differ} values)")
+            tick, _, mixed_store = zenoh_loop(prepared, hosts_class, endpoint and
+                                              config.free_tcp_endpoint(endpoint_host), ("planner",))
+            samples[PLANNER_IN_MASTER].append(tick)
+            for store, what in ((zenoh_store, "zenoh"), (mixed_store, "zenoh with the planner in the master")):
+                if store != inproc_store:
+                    differ = sum(a != b for a, b in zip(store, inproc_store))
+                    raise SystemExit(f"CHECK FAILED: {what} and inproc signal stores differ ({differ} values)")
             if full_run:
                 samples["cosim run zenoh"].append(cosim_run_zenoh(prepared))
             pids = [os.getpid(), pair.child.pid]
@@ -189,7 +201,7 @@ def summarize(samples: dict[str, list[float]], where: str) -> dict[str, float]:
     for stat in ("min", "median"):
         floor = figures[f"inproc loop {stat}"] + figures[f"raw round trip {stat}"]
         floor_11 = figures[f"inproc loop {stat}"] + 1.1 * figures[f"raw round trip {stat}"]
-        for case in ("zenoh loop", "cosim run zenoh"):
+        for case in ("zenoh loop", PLANNER_IN_MASTER, "cosim run zenoh"):
             if f"{case} {stat}" in figures:
                 ratio = figures[f"{case} {stat}"] / floor
                 figures[f"ratio {case} {stat}"] = ratio
@@ -292,7 +304,9 @@ def table_rows(where: str, f: dict[str, float]) -> list[dict]:
     """The performance-table rows of one setting (loopback or netns), from the medians."""
     floor = f"inproc {f['inproc loop median']:.0f} + round trip {f['raw round trip median']:.0f} µs"
     rows = []
-    for case, what in (("zenoh loop", "master loop"), ("cosim run zenoh", "`cosim run`, recorder on")):
+    for case, what in (("zenoh loop", "master loop"), ("cosim run zenoh", "`cosim run`, recorder on"),
+                       (PLANNER_IN_MASTER, "master loop, planner in the master's process as with "
+                                           "`--place planner=inproc`")):
         if f"ratio {case} median" in f:
             ratio = f[f"ratio {case} median"]
             rows.append(table_row(f"Satory loop over Zenoh ({what}, {where}) / (in-process tick + 1 raw "

@@ -51,7 +51,8 @@ def run(
     realtime: Optional[float] = typer.Option(
         None, "--realtime", help="pace to wall clock at FACTOR (bare --realtime: 1.0)"),
     figures: bool = typer.Option(True, "--figures/--no-figures", help="draw the run's figures"),
-    place: list[str] = typer.Option([], "--place", help="COMPONENT=WORKER (overrides host:), repeatable"),
+    place: list[str] = typer.Option([], "--place", help="COMPONENT=WORKER (overrides host:), repeatable; "
+                                    "WORKER 'local': this host, 'inproc': the master's own process"),
     listen: list[str] = typer.Option([], "--listen", help="master endpoint the workers reach"),
     connect: list[str] = typer.Option([], "--connect", help="worker or router endpoint, repeatable"),
     deploy: Optional[Path] = typer.Option(None, "--deploy", help="deployment settings YAML (endpoints, TLS, ACL)"),

@@ -135,9 +135,12 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         if prestart is not None:
             stack.callback(prestart.close)
         placement = _placement(scenario, place, transport)
-        prestart = _usable_prestart(prestart, transport, placement, deploy)
+        in_master = _in_master_process(scenario, place, transport)
+        prestart = _usable_prestart(prestart, transport, {**placement, **dict.fromkeys(in_master, 'inproc')},
+                                    deploy)
         launches = plan_launches(scenario, import_classes=transport != "zenoh")
         launches += _placed_fmu_launches(scenario, placement)
+        remote_launches = [launch for launch in launches if launch.name not in in_master]
         out = _make_run_folder(Path(out_dir))
         run_id = prestart.run_id if prestart is not None else uuid.uuid4().hex[:12]
         page = supervisor.current()
@@ -147,8 +150,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             if on_folder is not None:
                 on_folder(out)
             remote = None
-            if transport == "zenoh":  # spawned before the FMUs load: their start-ups overlap
-                remote = _spawn_remote(launches, run_id, deadline_s, placement, deploy, stack,
+            if transport == "zenoh" and remote_launches:  # spawned before the FMUs load: start-ups overlap
+                remote = _spawn_remote(remote_launches, run_id, deadline_s, placement, deploy, stack,
                                        prestart, clock, on_live)
             all_fmus = plan_fmus(scenario)
             local_fmus = [p for p in all_fmus if p.name not in placement]
@@ -219,6 +222,13 @@ def _placement(scenario: Any, place: Sequence[str], transport: str) -> dict[str,
         raise UserError("components placed on workers need --transport zenoh: "
                         + ", ".join(f"{c} on {w!r}" for c, w in placement.items()))
     return placement
+
+
+def _in_master_process(scenario: Any, place: Sequence[str], transport: str) -> set[str]:
+    """The Python components placed `inproc` (all of them are, with --transport inproc)."""
+    from cosim.distributed.placement import in_master_process
+
+    return in_master_process(scenario, place) if transport == "zenoh" else set()
 
 
 def _usable_prestart(prestart: Any, transport: str, placement: dict[str, str],
@@ -299,10 +309,11 @@ def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock, ou
     if remote is not None:
         _preload()
         hosted.update(remote.wait_ready())
-    else:
+    in_master = [launch for launch in prepared.launches if launch.name not in hosted]
+    if in_master:   # every Python component in-process, or those placed `inproc`
         from cosim.transport.inproc import InprocComponent
 
-        hosted.update({l.name: InprocComponent(l) for l in prepared.launches})
+        hosted.update({launch.name: InprocComponent(launch) for launch in in_master})
     fmu_hosting.wait_ready(hosted)
     clock.mark("components_ready")
     return {name: hosted[name] for name in prepared.names}
