@@ -309,7 +309,7 @@ class PreparedWindow:
 
 def _bind(kernel, matrix: np.ndarray) -> tuple[functools.partial, functools.partial]:
     """kernel's foot_fields and cg_and_preview_fields on the window of `matrix` (packed once for both)."""
-    window = kernel.pack(np.ascontiguousarray(matrix, dtype=np.float64))
+    window = kernel.pack(np.array(matrix, dtype=np.float64, order="C"))   # writable: the one compiled signature
     return functools.partial(kernel.foot_fields, window), functools.partial(kernel.cg_and_preview_fields, window)
 
 
@@ -331,24 +331,36 @@ def compiled_kernel():
         return None
     try:
         from controllers.road import projection_jit
-    except Exception as error:       # ImportError: no numba; anything else: a numba that does not load
+    except ImportError as error:     # no numba
         if mode == "on":
             raise ImportError(f"{JIT_VARIABLE}={value}: the compiled projection needs numba "
                               f"(pip install 'cosim[jit]'): {error}") from None
-        if not isinstance(error, ImportError):
-            warnings.warn(f"the compiled projection is not used: numba does not load: {error!r}",
-                          RuntimeWarning, stacklevel=2)
+        return None
+    except Exception as error:       # a numba that is installed but does not load or compile
+        if mode == "on":
+            raise RuntimeError(f"{JIT_VARIABLE}={value}: numba does not load: {error!r}") from None
+        warnings.warn(f"the compiled projection is not used: numba does not load: {error!r}",
+                      RuntimeWarning, stacklevel=2)
         return None
     kernel = projection_jit
     disagreement = _disagreement(kernel)
+    if disagreement:      # numba's cache can predate an edit of hermite.py: compile afresh once
+        kernel.recompile()
+        disagreement = _disagreement(kernel)
     if disagreement:
+        if mode == "on":
+            raise RuntimeError(f"{JIT_VARIABLE}={value}: the compiled projection disagrees with the "
+                               f"interpreted one: {disagreement}")
         warnings.warn(f"the compiled projection is not used: {disagreement}", RuntimeWarning, stacklevel=2)
         return None
     return kernel
 
 
 def _disagreement(kernel) -> str:
-    """'' if kernel gives foot()'s tuples bit for bit on a test window, else the first point where it does not."""
+    """'' if kernel gives foot()'s tuples bit for bit on a test window, else the first point where it does not.
+
+    Compared by repr, which tells -0.0 from 0.0, 0 from 0.0 and a numpy scalar from a float.
+    """
     s = np.linspace(0.0, 62.0, 32)
     psi = 0.3 + 0.012 * s + 0.0004 * s * s
     matrix = np.array([40.0 + 30.0 * np.sin(psi) + 0.9 * s, -5.0 - 30.0 * np.cos(psi), psi,
@@ -357,12 +369,12 @@ def _disagreement(kernel) -> str:
     for px in np.linspace(-20.0, 130.0, 31).tolist():
         for py in np.linspace(-60.0, 40.0, 21).tolist():
             expected, got = foot(interpreted, px, py), finish(bound(px, py), px, py)
-            if got != expected:
+            if repr(got) != repr(expected):
                 return f"at ({px}, {py}) it gives {got}, the interpreted path {expected}"
             cg, preview, ax, ay = pair(px, py, 0.7, 6.0)
             expected = (foot(interpreted, px, py), foot(interpreted, px + 6.0 * math.cos(0.7),
                                                         py + 6.0 * math.sin(0.7)))
-            if (finish(cg, px, py), finish(preview, ax, ay)) != expected:
+            if repr((finish(cg, px, py), finish(preview, ax, ay))) != repr(expected):
                 return f"at ({px}, {py}) cg_and_preview disagrees with two foot() calls"
     return ""
 
@@ -388,7 +400,8 @@ def foot(w: PreparedWindow, px: float, py: float, slot: int = -1) -> tuple:
     Returns:
         (s, x, y, offset, psi_path, kappa, dkappa_ds, v, a, extrapolated): the Projection's fields.
     """
-    if w.compiled is not None:
+    if w.compiled is not None:       # float(): the one compiled signature, and floats out as inside
+        px, py = float(px), float(py)
         return finish(w.compiled(px, py), px, py)
     i, t = w.tracked_chord(px, py, slot) if slot >= 0 else w.nearest_chord(px, py)
     if i == 0 and t == 0.0:
@@ -411,10 +424,11 @@ def cg_and_preview(w: PreparedWindow, x: float, y: float, psi: float, ls: float)
         ls: preview distance [m].
     """
     if w.compiled_pair is not None:
-        at_cg, preview, px, py = w.compiled_pair(x, y, psi, ls)
+        x, y = float(x), float(y)
+        at_cg, preview, px, py = w.compiled_pair(x, y, float(psi), float(ls))
         return finish(at_cg, x, y), finish(preview, px, py)
     at_cg = foot(w, x, y, 0)
-    if w.best[1] < 0:       # a new window: start the preview point's search about ls ahead of the CG's
+    if w.best[1] < 0 and w.mean_chord > 0.0:   # a new window: start the preview's search ls ahead of the CG's
         w.best[1] = w.best[0] + round(ls / w.mean_chord)
     return at_cg, foot(w, x + ls * math.cos(psi), y + ls * math.sin(psi), 1)
 

@@ -6,20 +6,36 @@ functions are compiled from their own source; the nearest chord is a plain
 scan of every chord (first index on ties), which is the answer the
 interpreted path's certified search proves without measuring them all, and
 in compiled code the scan of a 63-chord window is cheaper than the proof.
-Compiled functions are cached on disk by numba (`cache=True`): the first run
-on a machine compiles them (about a second), later runs load them.
+Compiled functions are cached on disk by numba (`cache=True`, in
+`__pycache__` beside the sources, else numba's user cache or NUMBA_CACHE_DIR):
+the first run on a machine compiles them, later runs load them. With no
+writable cache folder each process compiles them (a warning says so). numba
+notices an edit of this file but not of hermite.py, whose functions the ones
+here inline: `recompile()` rebuilds them (controllers.road.projection calls it
+when its start-up check finds a stale cache).
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 
 import numba
 import numpy as np
 
 from controllers.road import hermite
 
-_compile = numba.njit(cache=True, nogil=True)
+
+def _compile(function):
+    """numba.njit with the on-disk cache, or without it when no cache folder is writable."""
+    try:
+        return numba.njit(cache=True, nogil=True)(function)
+    except RuntimeError as error:     # "cannot cache function ...: no locator available"
+        warnings.warn(f"the compiled projection is compiled in each process: {error} "
+                      f"(set NUMBA_CACHE_DIR to a writable folder to keep it)", RuntimeWarning, stacklevel=2)
+        return numba.njit(nogil=True)(function)
+
+
 _segment = _compile(hermite.segment)
 _refine = _compile(hermite.refine)
 _evaluate = _compile(hermite.evaluate)
@@ -90,3 +106,9 @@ def cg_and_preview_fields(window, x, y, psi, ls):
     px = x + ls * math.cos(psi)
     py = y + ls * math.sin(psi)
     return foot_fields(window, x, y), foot_fields(window, px, py), px, py
+
+
+def recompile() -> None:
+    """Compile every function here afresh (and replace their cache entries), hermite's first."""
+    for function in (_segment, _refine, _evaluate, _beyond, pack, foot_fields, cg_and_preview_fields):
+        function.recompile()

@@ -21,6 +21,7 @@ from cosim.transport.zenoh.config import check_key_chunk
 
 LOCAL = "local"
 INPROC = "inproc"  # a Python component in the master's process
+RESERVED_HOSTS = {LOCAL: "the master's host", INPROC: "the master's own process"}   # never worker names
 
 
 def parse_place(items: Sequence[str]) -> dict[str, str]:

@@ -47,6 +47,7 @@ from cosim.distributed.deploy import (DeploySettings, check_endpoint, session_mo
 from cosim.errors import UserError
 from cosim.fmu.remote import FMU_HOST_CLASS, store_fmu
 from cosim.transport.inproc import PythonComponentLaunch
+from cosim.distributed.placement import RESERVED_HOSTS
 from cosim.distributed.service import stop_event_with_signals
 from cosim.transport.zenoh.config import check_key_chunk, master_alive_key
 from cosim.transport.zenoh.processes import ChildProcess
@@ -86,6 +87,9 @@ class Worker:
                  insecure: bool = False, max_components: int = MAX_COMPONENTS,
                  orphan_timeout_s: float = ORPHAN_TIMEOUT_S) -> None:
         self.name = check_key_chunk(name, "worker name")
+        if self.name in RESERVED_HOSTS:
+            raise ValueError(f"worker name {name!r} is reserved: host: {name} (and --place NAME={name}) "
+                             f"means {RESERVED_HOSTS[name]}")
         self.settings = settings or DeploySettings()
         self.allow = tuple(allow) or proto.DEFAULT_ALLOW
         self.host = socket.gethostname()

@@ -136,8 +136,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             stack.callback(prestart.close)
         placement = _placement(scenario, place, transport)
         in_master = _in_master_process(scenario, place, transport)
-        prestart = _usable_prestart(prestart, transport, {**placement, **dict.fromkeys(in_master, 'inproc')},
-                                    deploy)
+        prestart = _usable_prestart(prestart, transport, placement, deploy)   # it leaves out `inproc` ones
         launches = plan_launches(scenario, import_classes=transport != "zenoh")
         launches += _placed_fmu_launches(scenario, placement)
         remote_launches = [launch for launch in launches if launch.name not in in_master]
@@ -160,7 +159,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             options = _Options(fmu_hosting.start_time(scenario, all_fmus),
                                fmu_hosting.deadlines(scenario, prepared.names, deadline_s),
                                fmu_log, page, tuple(observers))
-            hosted = _host_components(prepared, remote, clock, out, options)
+            hosted = _host_components(prepared, remote, in_master, clock, out, options)
             _check_gaps(scenario, hosted, all_fmus, strict, on_warning)
             if before_tick0 is not None:
                 before_tick0()
@@ -300,20 +299,24 @@ def _write_live_credential(out: Path, remote: Any) -> None:
         write_credential_file(path, credential)
 
 
-def _host_components(prepared: PreparedRun, remote: Any, clock: StartupClock, out: Path,
-                     options: _Options) -> dict[str, Any]:
-    """Host every component; name -> HostedComponent in declaration order."""
+def _host_components(prepared: PreparedRun, remote: Any, in_master: set[str], clock: StartupClock,
+                     out: Path, options: _Options) -> dict[str, Any]:
+    """Host every component; name -> HostedComponent in declaration order.
+
+    Python components run in this process without `remote` (--transport inproc), else those
+    of `in_master` (placed `inproc`), constructed while the component processes start.
+    """
     hosted = fmu_hosting.host_fmus(prepared.scenario, prepared.fmus, out, options.deadlines,
                                    options.fmu_log)
     clock.mark("fmus_ready")
+    here = [launch for launch in prepared.launches if remote is None or launch.name in in_master]
+    if here:
+        from cosim.transport.inproc import InprocComponent
+
+        hosted.update({launch.name: InprocComponent(launch) for launch in here})
     if remote is not None:
         _preload()
         hosted.update(remote.wait_ready())
-    in_master = [launch for launch in prepared.launches if launch.name not in hosted]
-    if in_master:   # every Python component in-process, or those placed `inproc`
-        from cosim.transport.inproc import InprocComponent
-
-        hosted.update({launch.name: InprocComponent(launch) for launch in in_master})
     fmu_hosting.wait_ready(hosted)
     clock.mark("components_ready")
     return {name: hosted[name] for name in prepared.names}

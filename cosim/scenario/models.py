@@ -114,8 +114,9 @@ class PythonSpec(BaseModel):
     parameters: dict[str, Any] = Field({}, description=(
         "keyword arguments of the class; for a shipped class, typed and described by its "
         "parameter model"))
-    host: str = Field("local", min_length=1, description="'local' or the name of a worker "
-                                                         "that runs the component")
+    host: str = Field("local", min_length=1, description="'local' (the master's host), 'inproc' "
+                                                         "(the master's own process) or the name of a "
+                                                         "worker that runs the component")
     deadline: PositiveFloat | None = Field(None, description=(
         "time a step may take in-process, wall clock s (null: the run's --deadline)"))
 

@@ -24,8 +24,9 @@ class SourceBase(BaseModel):
     model_config = STRICT
     period: PositiveFloat | None = Field(None, description=(
         "time between two steps, a whole multiple of tick, s (null: every master tick)"))
-    host: str = Field("local", min_length=1, description="'local' or the name of a worker "
-                                                         "that runs it")
+    host: str = Field("local", min_length=1, description="'local' (the master's host), 'inproc' "
+                                                         "(the master's own process) or the name of a "
+                                                         "worker that runs it")
     unit: str = Field("", description="unit of the output 'value' ('' matches any unit)")
 
 

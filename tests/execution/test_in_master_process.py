@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -44,3 +46,30 @@ def test_a_zenoh_run_with_the_planner_in_the_master_gives_the_same_bytes(tmp_pat
     assert pids["planner"] == pids["vehicle"] == os.getpid() != pids["controller"]
     pids = json.loads((tmp_path / "own" / "manifest.json").read_text())["pids"]
     assert len({pids["planner"], pids["controller"], os.getpid()}) == 3
+
+
+def test_cli_with_host_inproc_in_the_file_uses_the_prestarted_processes_of_the_others(tmp_path):
+    text = LANE_CHANGE.read_text().replace("    python: controllers.planning:Planner\n",
+                                           "    python: controllers.planning:Planner\n    host: inproc\n")
+    assert "host: inproc" in text
+    scenario = tmp_path / "lane_change_planner_inproc.yaml"
+    scenario.write_text(text)
+    runs = {}
+    for name, path in (("mixed", scenario), ("own", LANE_CHANGE)):
+        done = subprocess.run([sys.executable, "-m", "cosim.cli.app", "run", str(path), "--set", "duration=4",
+                               "--no-figures", "--out", str(tmp_path / name)],
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr
+        runs[name] = tmp_path / name
+    assert (runs["mixed"] / "signals.csv").read_bytes() == (runs["own"] / "signals.csv").read_bytes()
+    manifest = json.loads((runs["mixed"] / "manifest.json").read_text())
+    assert manifest["pids"]["planner"] == manifest["pids"]["vehicle"] != manifest["pids"]["controller"]
+    assert set(manifest["startup_processes_s"]) == {"controller"}
+
+
+@pytest.mark.parametrize("name", ["inproc", "local"])
+def test_a_worker_cannot_take_a_reserved_host_name(name):
+    from cosim.distributed.worker import Worker
+
+    with pytest.raises(ValueError, match=rf"worker name '{name}' is reserved: host: {name}"):
+        Worker(name)

@@ -27,6 +27,29 @@ from tests.helpers.closed_loop import CirclePath, make_window
 numba = pytest.importorskip("numba")
 
 
+def same(a, b) -> bool:
+    """Equal bit for bit and type for type (repr tells -0.0 from 0.0, 0 from 0.0, np.float64 from float)."""
+    return repr(a) == repr(b)
+
+
+def test_numpy_and_int_inputs_give_floats_as_the_interpreted_path_gives_for_floats(jit_mode):
+    assert jit_mode("on") is not None
+    window = make_window(CirclePath(30.0), 0.0)
+    compiled, interpreted = PreparedWindow(window), PreparedWindow(window, compiled=False)
+    assert same(foot(compiled, np.float64(2.5), 1), foot(interpreted, 2.5, 1.0))
+    assert same(cg_and_preview(compiled, np.float64(1.0), 0, np.float64(0.1), 5),
+                cg_and_preview(interpreted, 1.0, 0.0, 0.1, 5.0))
+
+
+def test_a_window_of_coincident_points_gives_the_same_on_both_paths(jit_mode):
+    assert jit_mode("on") is not None
+    matrix = np.array([np.full(8, 3.0), np.full(8, -1.0), np.linspace(0.0, 0.3, 8), np.zeros(8),
+                       np.arange(8.0), np.ones(8), np.zeros(8)])      # all points at (3, -1), s increasing
+    compiled, interpreted = PreparedWindow(matrix), PreparedWindow(matrix, compiled=False)
+    for point in ((3.0, -1.0), (5.0, 2.0), (0.0, 0.0)):
+        assert same(cg_and_preview(compiled, *point, 0.4, 5.0), cg_and_preview(interpreted, *point, 0.4, 5.0))
+
+
 def test_compiled_foot_equals_the_interpreted_one_bit_for_bit(jit_mode):
     assert jit_mode("on") is not None
     rng = np.random.default_rng(21)
@@ -43,10 +66,10 @@ def test_compiled_foot_equals_the_interpreted_one_bit_for_bit(jit_mode):
         for px, py in points:
             px, py = float(px), float(py)
             expected = foot(interpreted, px, py, 0)
-            assert foot(compiled, px, py, 0) == expected, (px, py)
-            assert foot(compiled, px, py) == foot(interpreted, px, py), (px, py)
+            assert same(foot(compiled, px, py, 0), expected), (px, py)
+            assert same(foot(compiled, px, py), foot(interpreted, px, py)), (px, py)
             psi, ls = float(rng.uniform(-4.0, 4.0)), float(rng.uniform(0.5, 15.0))
-            assert cg_and_preview(compiled, px, py, psi, ls) == cg_and_preview(interpreted, px, py, psi, ls)
+            assert same(cg_and_preview(compiled, px, py, psi, ls), cg_and_preview(interpreted, px, py, psi, ls))
             compared += 1
             beyond += expected[9] != 0
     assert compared > 5000 and beyond > 200        # both ends' extrapolation reached
@@ -69,7 +92,7 @@ def test_backstepping_closed_loop_is_the_same_on_both_paths(jit_mode):
     assert jit_mode("off") is None
     interpreted = run()
     assert jit_mode("on") is not None
-    assert run() == interpreted
+    assert same(run(), interpreted)
 
 
 def test_zenoh_run_with_the_compiled_path_gives_the_in_process_bytes(tmp_path):
@@ -105,14 +128,50 @@ def test_an_unknown_mode_names_the_variable_and_value(jit_mode):
         jit_mode("fast")
 
 
-def test_a_kernel_that_disagrees_is_not_used(jit_mode, monkeypatch):
+def _disagreeing(monkeypatch) -> list[str]:
+    """projection_jit.foot_fields made one bit off; its recompile() recorded, not run. Returns the record."""
     from controllers.road import projection_jit
-    exact = projection_jit.foot_fields
+    exact, calls = projection_jit.foot_fields, []
 
     def off_by_one_bit(window, px, py):
         fields = exact(window, px, py)
-        return (np.nextafter(fields[0], np.inf), *fields[1:])
+        return (float(np.nextafter(fields[0], np.inf)), *fields[1:])
 
     monkeypatch.setattr(projection_jit, "foot_fields", off_by_one_bit)
+    monkeypatch.setattr(projection_jit, "recompile", lambda: calls.append("recompile"))
+    return calls
+
+
+def test_a_kernel_that_disagrees_is_compiled_afresh_once_then_not_used(jit_mode, monkeypatch):
+    calls = _disagreeing(monkeypatch)
     with pytest.warns(RuntimeWarning, match=r"the compiled projection is not used: at \(-20.0, -60.0\) it gives"):
         assert jit_mode("auto") is None
+    assert calls == ["recompile"]       # a stale numba cache (hermite.py edited) is rebuilt before giving up
+
+
+def test_on_with_a_kernel_that_disagrees_is_an_error(jit_mode, monkeypatch):
+    _disagreeing(monkeypatch)
+    with pytest.raises(RuntimeError, match=r"COSIM_JIT=on: the compiled projection disagrees with the "
+                                           r"interpreted one: at \(-20.0, -60.0\)"):
+        jit_mode("on")
+
+
+class _BrokenNumba:
+    """A meta-path finder that makes importing projection_jit fail as a broken numba install would."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "controllers.road.projection_jit":
+            raise RuntimeError("numba: LLVM failed to initialise")
+        return None
+
+
+def test_a_numba_that_does_not_load_warns_in_auto_and_is_an_error_in_on(jit_mode, monkeypatch):
+    import controllers.road
+
+    monkeypatch.delitem(sys.modules, "controllers.road.projection_jit", raising=False)
+    monkeypatch.delattr(controllers.road, "projection_jit", raising=False)
+    monkeypatch.setattr(sys, "meta_path", [_BrokenNumba(), *sys.meta_path])
+    with pytest.warns(RuntimeWarning, match=r"numba does not load: RuntimeError\('numba: LLVM failed"):
+        assert jit_mode("auto") is None
+    with pytest.raises(RuntimeError, match=r"COSIM_JIT=on: numba does not load: RuntimeError"):
+        jit_mode("on")
