@@ -3,7 +3,8 @@
 For each worker count, a LocalCluster (one thread per worker process, as
 `cosim sweep` makes it) is started once and warmed up with one small sweep
 (each worker imports the platform and the scenario's classes, builds its FMU
-cache entry: what every later sample reuses), then a timed sweep of
+cache entry, reads the scenario and the FMU's description and lays out the
+planner's routes: what every later sample reuses, see benchmarks/README.md), then a timed sweep of
 `--samples` runs of satory_nominal (`--set duration=...`, the controller's
 gain ke varied) goes through `cosim.execution.sweep.run_sweep` on that
 cluster. The worker counts alternate over `--repeats` rounds. Prints runs per
