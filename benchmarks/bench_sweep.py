@@ -22,7 +22,6 @@ one-off `cosim sweep` pays on top.
 from __future__ import annotations
 
 import argparse
-import logging
 import statistics
 import sys
 import tempfile
@@ -99,15 +98,14 @@ def main() -> None:
     args = parser.parse_args()
     if args.samples < 1 or args.repeats < 1 or min(args.workers) < 1:
         parser.error("need --samples, --repeats and --workers >= 1")
-    from distributed import LocalCluster
+    from cosim.execution.sweep import local_cluster
 
     before = load_average()
     clusters, startup = {}, {}
     try:
         for n in args.workers:
             start = time.perf_counter()
-            clusters[n] = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=logging.ERROR)
+            clusters[n] = local_cluster(n)  # as `cosim sweep` starts its cluster
             startup[n] = time.perf_counter() - start
             warm_every_worker(clusters[n].scheduler_address, args.transport)
             timed_sweep(clusters[n].scheduler_address, n, 5.0, args.transport, seed=99)  # warm-up

@@ -338,3 +338,16 @@ def test_an_invalid_sample_on_the_cluster_stops_every_run(tmp_path):
             run_sweep(scenario, ["components.gain.parameters.k=0:3"], 3, seed=1,
                       scheduler=cluster.scheduler_address, out_dir=tmp_path / "out")
     assert not list((tmp_path / "out" / "samples").iterdir())
+
+
+def test_the_cluster_a_sweep_starts_slows_dask_periodic_work():
+    """The scheduler and the workers of `local_cluster` tick every second, not every 20 ms
+    (CPU the client's process would take from busy workers); Dask's own default is untouched."""
+    import dask
+
+    from cosim.execution.sweep import local_cluster
+
+    with local_cluster(1, processes=False) as cluster:
+        assert cluster.scheduler._tick_interval == 1.0
+        assert [w._tick_interval for w in cluster.workers.values()] == [1.0]
+    assert dask.config.get("distributed.admin.tick.interval") == "20ms"
