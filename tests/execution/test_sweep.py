@@ -342,12 +342,19 @@ def test_an_invalid_sample_on_the_cluster_stops_every_run(tmp_path):
 
 def test_the_cluster_a_sweep_starts_slows_dask_periodic_work():
     """The scheduler and the workers of `local_cluster` tick every second, not every 20 ms
-    (CPU the client's process would take from busy workers); Dask's own default is untouched."""
+    (CPU the client's process would take from busy workers), and its worker processes do not
+    profile their tasks; Dask's own defaults are untouched."""
     import dask
+    from distributed import Client
 
     from cosim.execution.sweep import local_cluster
+
+    def profiling() -> bool:
+        return dask.config.get("distributed.worker.profile.enabled")
 
     with local_cluster(1, processes=False) as cluster:
         assert cluster.scheduler._tick_interval == 1.0
         assert [w._tick_interval for w in cluster.workers.values()] == [1.0]
-    assert dask.config.get("distributed.admin.tick.interval") == "20ms"
+    with local_cluster(1) as cluster, Client(cluster) as client:  # a worker process
+        assert list(client.run(profiling).values()) == [False]
+    assert dask.config.get("distributed.admin.tick.interval") == "20ms" and profiling()
