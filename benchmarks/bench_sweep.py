@@ -1,17 +1,19 @@
 """`cosim sweep` throughput against the number of Dask workers (1 vs 2) on a LocalCluster.
 
 For each worker count, a LocalCluster (one thread per worker process, as
-`cosim sweep` makes it) is started once and warmed up with one small sweep
-(each worker imports the platform and the scenario's classes, builds its FMU
-cache entry: what every later sample reuses), then a timed sweep of
-`--samples` runs of satory_nominal (`--set duration=...`, the controller's
-gain ke varied) goes through `cosim.execution.sweep.run_sweep` on that
-cluster. The worker counts alternate over `--repeats` rounds. Prints runs per
-minute (best and median), the cores the workers kept busy (CPU seconds of the
-worker processes and their children per second of the sweep: above 1 with one
-worker, the recorder's writer process already runs beside it), the scaling 2 workers / 1 worker (target >= 1.8 on
-this 2-core machine) and the start-up of a cluster, which a one-off `cosim
-sweep` pays on top.
+`cosim sweep` makes it) is started once and warmed up: one short sample pinned
+to each worker, then one small sweep (each worker imports the platform and the
+scenario's classes, builds its FMU cache entry, reads the scenario and the
+FMU's description and lays out the planner's routes: what every later sample
+reuses, see benchmarks/README.md). Then a timed sweep of `--samples` runs of
+satory_nominal (`--set duration=...`, the controller's gain ke varied) goes
+through `cosim.execution.sweep.run_sweep` on that cluster. The worker counts
+alternate over `--repeats` rounds. Prints runs per minute (best and median),
+the cores the workers kept busy (CPU seconds of the worker processes and their
+children per second of the sweep: above 1 with one worker, the recorder's
+writer process already runs beside it), the scaling 2 workers / 1 worker
+(target >= 1.8 on this 2-core machine) and the start-up of a cluster, which a
+one-off `cosim sweep` pays on top.
 
     .venv/bin/python benchmarks/bench_sweep.py [--samples 8] [--seconds 20] [--repeats 2]
         [--transport inproc|zenoh] [--workers 1 2]
@@ -20,7 +22,6 @@ sweep` pays on top.
 from __future__ import annotations
 
 import argparse
-import logging
 import statistics
 import sys
 import tempfile
@@ -44,6 +45,29 @@ def _cpu_seconds() -> float:
 
     own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
     return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+def _warm_up(run_dir: str, transport: str) -> None:
+    """One short sample on this worker, its folder then removed."""
+    import shutil
+
+    from cosim.execution.sweep import run_scenario_sample
+
+    try:
+        run_scenario_sample(SCENARIO, ["duration=5"], Path(run_dir), transport)
+    finally:
+        shutil.rmtree(run_dir, ignore_errors=True)
+
+
+def warm_every_worker(scheduler: str, transport: str) -> None:
+    """A short sample pinned to each worker: a sweep of one sample per worker may put two on
+    one worker and leave the other cold (imports, caches) for the timed sweep's first sample."""
+    from distributed import Client
+
+    with Client(scheduler) as client, tempfile.TemporaryDirectory(prefix="bench-sweep-warm-") as out:
+        workers = sorted(client.scheduler_info(n_workers=-1)["workers"])
+        client.gather([client.submit(_warm_up, f"{out}/{i}", transport, workers=[w], pure=False)
+                       for i, w in enumerate(workers)])
 
 
 def timed_sweep(scheduler: str, samples: int, seconds: float, transport: str, seed: int) -> tuple[float, float]:
@@ -74,16 +98,16 @@ def main() -> None:
     args = parser.parse_args()
     if args.samples < 1 or args.repeats < 1 or min(args.workers) < 1:
         parser.error("need --samples, --repeats and --workers >= 1")
-    from distributed import LocalCluster
+    from cosim.execution.sweep import local_cluster
 
     before = load_average()
     clusters, startup = {}, {}
     try:
         for n in args.workers:
             start = time.perf_counter()
-            clusters[n] = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=logging.ERROR)
+            clusters[n] = local_cluster(n)  # as `cosim sweep` starts its cluster
             startup[n] = time.perf_counter() - start
+            warm_every_worker(clusters[n].scheduler_address, args.transport)
             timed_sweep(clusters[n].scheduler_address, n, 5.0, args.transport, seed=99)  # warm-up
         rates: dict[int, list[float]] = {n: [] for n in args.workers}
         busy: dict[int, list[float]] = {n: [] for n in args.workers}

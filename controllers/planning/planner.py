@@ -47,6 +47,7 @@ profile (controllers.planning.following).
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping, Set
 
@@ -68,6 +69,13 @@ STATE_KEEP, STATE_CHANGING, STATE_STOPPING, STATE_HOLD = 0.0, 1.0, 2.0, 3.0
 HOLD_SPEED = 0.01      # m/s: below it, in the stop's final segment or past it, the vehicle is held
 _cumsum = np.add.accumulate     # np.cumsum of a 1-D array without its Python wrapper (every step)
 _WINDOW_KEYS: dict[str, tuple[str, ...]] = {}    # port names of a window per prefix, made once
+# the routes laid out in this process (grid, recommended and alternative plans), by the
+# planner's parameters and the vehicle's first state: the samples of a sweep that vary
+# anything else (a controller gain, a plant parameter that leaves the start alone) lay
+# them out once per worker (the speed profiles are most of a planner's start-up, ~45 ms
+# on the Satory loop). They are only read after initialize, by every planner that has them.
+ROUTES_KEPT = 4
+_routes: dict[tuple[str, ...], tuple["RouteGrid", "RoutePlan", "RoutePlan | None"]] = {}
 
 
 class RouteGrid:
@@ -153,6 +161,19 @@ class RoutePlan:
         sigma = self.sigma[idx]
         return window_signals(prefix, self.x[idx], self.y[idx], self.psi[idx] + psi_shift, self.kappa[idx],
                               sigma - sigma[0], self.v[idx], self.a[idx])
+
+
+def _parameters_key(parameters: dict[str, object]) -> str | None:
+    """A planner's parameters as canonical JSON (floats exactly, 1 and 1.0 apart), the key
+    of its routes in `_routes`; None, and nothing kept, for a road read from a file (its
+    content may change between runs) or a value JSON does not write."""
+    road = parameters["road"]
+    if isinstance(road, Mapping) and "opendrive" in road:
+        return None
+    try:
+        return json.dumps(parameters, sort_keys=True, allow_nan=True)
+    except (TypeError, ValueError):
+        return None
 
 
 def window_signals(prefix: str, *fields: np.ndarray) -> dict[str, np.ndarray]:
@@ -243,6 +264,12 @@ class Planner(Component):
             self.inputs, self.outputs = Planner.inputs + LEAD_INPUTS, Planner.outputs + FOLLOWING_OUTPUTS
         self.ref_route: RoutePlan | None = None
         self.alt_route: RoutePlan | None = None
+        self._routes_key = _parameters_key(
+            {"road": road, "lane": lane, "manoeuvre": manoeuvre, "speed": speed,
+             "start_from_rest": start_from_rest, "stop_at_end": stop_at_end, "laps": laps,
+             "distance": distance, "window_spacing": window_spacing, "window_back": window_back,
+             "preview": preview, "planner_period": planner_period, "launch_offset": launch_offset,
+             "obstacle_range": obstacle_range, "off_road": off_road})
         self._alt_offset: float | None = None      # lateral offset of plan.alt_lane, looked up once
         self.holding = False
         self.alt_read = True  # False: nothing reads alt_* (use_outputs), the first window is held
@@ -278,16 +305,15 @@ class Planner(Component):
             end = s0 + self.laps * self.road.length
         else:
             end = self.road.length if self.distance is None else min(self.road.length, s0 + self.distance)
-        span = self.step_pts * ROUTE_DS * (WINDOW_POINTS - 1)
-        self.grid = RouteGrid(self.road, start - self.back - 10.0, end + span + 10.0)
-        try:
-            self.ref_route = RoutePlan(self.grid, self.plan.ref, start, end, self.limits, from_rest,
-                                       self.stop_at_end, vx)
-            if self.plan.alt is not None:
-                self.alt_route = RoutePlan(self.grid, self.plan.alt, start, end, self.limits, from_rest,
-                                           self.stop_at_end, vx)
-        except SpecError as exc:
-            raise ComponentError(f"at t = {t0}: {exc}") from None
+        key = None if self._routes_key is None else (self._routes_key, *(float(v).hex() for v in (t0, x, y, psi, vx)))
+        kept = _routes.get(key) if key is not None else None
+        if kept is None:
+            kept = self._lay_out(t0, start, end, from_rest, vx)
+            if key is not None:
+                if len(_routes) >= ROUTES_KEPT:
+                    _routes.pop(next(iter(_routes)))  # the oldest
+                _routes[key] = kept
+        self.grid, self.ref_route, self.alt_route = kept
         self.offset = proj.lateral
         self.holding = False
         self._alt_held = None
@@ -295,6 +321,19 @@ class Planner(Component):
             self.follower.reset()
             self.follower.read(t0, inputs)
         return self._outputs(t0, psi, vx)
+
+    def _lay_out(self, t0: float, start: float, end: float, from_rest: bool,
+                 vx: float) -> tuple[RouteGrid, RoutePlan, RoutePlan | None]:
+        """The route grid and both options laid out on it, from `start` to `end`."""
+        span = self.step_pts * ROUTE_DS * (WINDOW_POINTS - 1)
+        grid = RouteGrid(self.road, start - self.back - 10.0, end + span + 10.0)
+        try:
+            ref = RoutePlan(grid, self.plan.ref, start, end, self.limits, from_rest, self.stop_at_end, vx)
+            alt = None if self.plan.alt is None else RoutePlan(grid, self.plan.alt, start, end, self.limits,
+                                                               from_rest, self.stop_at_end, vx)
+        except SpecError as exc:
+            raise ComponentError(f"at t = {t0}: {exc}") from None
+        return grid, ref, alt
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Track the vehicle's progress and return both windows and the scalars."""

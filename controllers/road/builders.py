@@ -17,6 +17,7 @@ Builders give the paper's roads; `road_from_spec` reads the YAML form:
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -154,6 +155,13 @@ def two_lane_road(length: float = 600.0, radius: float | None = None, lane_width
 BUILDERS = {"satory_standin": satory_standin, "two_lane": two_lane_road}
 
 
+# the roads built in this process, by their spec as canonical JSON: a Road only holds
+# its geometry (and lane centres made from it on demand), so the planners of a sweep's
+# samples on one worker share one; a road read from an OpenDRIVE file is built each time
+ROADS_KEPT = 8
+_roads: dict[str, Road] = {}
+
+
 def road_from_spec(spec, where: str = "road") -> Road:
     """A Road from its YAML form (see the module docstring).
 
@@ -163,6 +171,30 @@ def road_from_spec(spec, where: str = "road") -> Road:
             {opendrive: file, road: id, lane: id, ...} (controllers.road.opendrive).
         where: location of the spec, for error messages.
     """
+    key = _spec_key(spec)
+    road = _roads.get(key) if key is not None else None
+    if road is None:
+        road = _build_road(spec, where)
+        if key is not None:
+            if len(_roads) >= ROADS_KEPT:
+                _roads.pop(next(iter(_roads)))  # the oldest
+            _roads[key] = road
+    return road
+
+
+def _spec_key(spec) -> str | None:
+    """A road spec as canonical JSON (floats exactly, 1 and 1.0 apart); None for an
+    OpenDRIVE road (its file may change) or a value JSON does not write."""
+    if isinstance(spec, Mapping) and "opendrive" in spec:
+        return None
+    try:
+        return json.dumps(spec, sort_keys=True, allow_nan=True)
+    except (TypeError, ValueError):
+        return None
+
+
+def _build_road(spec, where: str) -> Road:
+    """road_from_spec without the kept roads."""
     if isinstance(spec, str):
         spec = {"builder": spec}
     if not isinstance(spec, Mapping):

@@ -236,21 +236,65 @@ def check_samples(scenario_path: Path, samples: Sequence[Sequence[str]],
     refuse_invalid(scenario_path, samples, [sample_problem(scenario_path, o) for o in samples], shown)
 
 
-def _sample_check(scenario_path: Path, samples: list[list[str]],
-                  roots: tuple[str, ...]) -> Callable[[Callable], None]:
-    """The validation of a sweep's samples, as `execute_samples`' `check`: the first sample
-    here and now (a broken scenario is refused at once, every sample listed, before a cluster
-    starts), the others on the cluster's workers, in parallel (each costs a scenario load
-    and a `prepare_run`: serial in the client, that was a fixed cost the workers could not share)."""
-    first = [sample_problem(scenario_path, samples[0])] if samples else []
-    if any(first):
-        check_samples(scenario_path, samples)  # raises, naming every invalid sample
+def validate_chunk(scenario_path: Path, roots: Sequence[str],
+                   chunk: Sequence[Sequence[str]]) -> list[str]:
+    """`sample_problem` of each sample of a chunk, in order (one cluster task validates many:
+    a task per sample cost a scheduler round trip each, for a check of a few ms)."""
+    return [sample_problem(scenario_path, overrides, roots) for overrides in chunk]
 
-    def check(cluster_map: Callable) -> None:
-        rest = cluster_map(partial(sample_problem, scenario_path, roots=roots), samples[1:])
-        refuse_invalid(scenario_path, samples, first + list(rest))
 
-    return check
+def chunks(items: Sequence[Any], count: int) -> list[list[int]]:
+    """The indices of `items` dealt into at most `count` non-empty chunks of nearly equal size."""
+    count = max(1, min(count, len(items)))
+    return [list(range(first, len(items), count)) for first in range(count)] if items else []
+
+
+@dataclass
+class SampleCheck:
+    """The validation of a sweep's samples (see `execute_samples`).
+
+    `local` samples are validated here and now, before any cluster starts (a broken
+    scenario is then refused at once, every sample listed); the others on the cluster's
+    workers, in parallel and in one task per worker thread, while the runs wait for them
+    on the cluster, not in this process (no round trip through the client between the
+    checks and the first run).
+    """
+
+    scenario_path: Path
+    samples: list[list[str]]
+    roots: tuple[str, ...]
+    local: int = 1  # how many samples, from the first, are validated in this process
+
+    def __post_init__(self) -> None:
+        self.local = min(self.local, len(self.samples))
+        self.order: list[list[int]] = []  # the cluster's chunks: indices into samples[local:]
+        self.problems = [sample_problem(self.scenario_path, o) for o in self.samples[:self.local]]
+        if any(self.problems):
+            check_samples(self.scenario_path, self.samples)  # raises, naming every invalid sample
+
+    def submit(self, client: Any, threads: int) -> list[Any]:
+        """The cluster's validation tasks (futures of lists of problems), one per chunk."""
+        rest = self.samples[self.local:]
+        self.order = chunks(rest, threads)
+        return [client.submit(validate_chunk, self.scenario_path, self.roots,
+                              [rest[i] for i in chunk], pure=False) for chunk in self.order]
+
+    def refuse(self, chunk_problems: Sequence[Sequence[str]]) -> None:
+        """Raise the refusal (UserError) if a sample of any chunk is invalid."""
+        problems = self.problems + [""] * (len(self.samples) - self.local)
+        for chunk, found in zip(self.order, chunk_problems):
+            for i, problem in zip(chunk, found):
+                problems[self.local + i] = problem
+        refuse_invalid(self.scenario_path, self.samples, problems)
+
+
+def _gated(task: Callable[..., tuple[str, dict[str, float], str]],
+           chunk_problems: Sequence[Sequence[str]], *job: Any) -> tuple[str, dict[str, float], str]:
+    """A run task that waits, on the cluster, for the samples' validation (its dependencies)
+    and runs nothing if any sample is invalid (the client then raises the refusal)."""
+    if any(problem for found in chunk_problems for problem in found):
+        return "refused", {}, ""
+    return task(*job)
 
 
 def _run_task(run_fn: RunFunction, scenario_path: Path, transport: str, roots: tuple[str, ...],
@@ -269,38 +313,71 @@ def _run_task(run_fn: RunFunction, scenario_path: Path, transport: str, roots: t
         return "failed", {}, f"sample {index}: {type(exc).__name__}: {exc}"
 
 
+# Dask's periodic work, slowed down for the clusters a sweep starts: the event-loop health
+# tick (20 ms by default) and the system and memory monitors (0.5 s, 0.1 s) cost the
+# client's process about 0.03 of a core while the workers run (0.008 so), CPU the
+# workers then do not get when they keep every core busy; nothing reads them sooner.
+# The workers' profiler (a thread sampling the running task's stack every 10 ms, for a
+# dashboard a sweep does not start) is off: ~4 % more runs per minute
+CLUSTER_CONFIG = {"distributed.admin.tick.interval": "1s",
+                  "distributed.admin.system-monitor.interval": "2s",
+                  "distributed.worker.memory.monitor-interval": "1s",
+                  "distributed.worker.profile.enabled": False}
+
+
+def local_cluster(workers: int, **options: Any) -> Any:
+    """The `distributed.LocalCluster` a sweep starts: `workers` processes of one thread each,
+    no dashboard, quiet logs, Dask's periodic work slowed (`CLUSTER_CONFIG`); `options`
+    are more LocalCluster keyword arguments (e.g. processes=False)."""
+    import dask
+    from distributed import LocalCluster
+
+    settings = {"n_workers": workers, "threads_per_worker": 1, "processes": True,
+                "dashboard_address": None, "silence_logs": logging.ERROR, **options}
+    with dask.config.set(CLUSTER_CONFIG):  # read as the scheduler, nannies and workers start
+        return LocalCluster(**settings)
+
+
 def _client(scheduler: str | None, workers: int, cluster_options: dict[str, Any] | None):
     """A Dask client and the local cluster it owns (None when joining a scheduler)."""
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     if scheduler:
         try:
             return Client(scheduler, timeout="10s"), None
         except (OSError, TimeoutError) as exc:
             raise AnalysisError(f"--scheduler {scheduler}: cannot connect: {exc}") from None
-    options = {"n_workers": workers, "threads_per_worker": 1, "processes": True,
-               "dashboard_address": None, "silence_logs": logging.ERROR}
-    options.update(cluster_options or {})
-    cluster = LocalCluster(**options)
+    cluster = local_cluster(workers, **(cluster_options or {}))
     return Client(cluster), cluster
+
+
+def _threads(client: Any) -> int:
+    """The task slots of the client's cluster (its workers' threads), at least 1."""
+    workers = client.scheduler_info(n_workers=-1).get("workers", {})
+    return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
 
 
 def execute_samples(task: Callable[..., tuple[str, dict[str, float], str]],
                     jobs: Sequence[tuple[int, list[str], Path]], scheduler: str | None,
                     cluster_options: dict[str, Any] | None,
-                    check: Callable[[Callable], None] | None = None) -> list[tuple[str, dict, str]]:
+                    check: SampleCheck | None = None) -> list[tuple[str, dict, str]]:
     """Run the jobs (index, overrides, run_dir) as Dask tasks; results in job order.
 
     A task lost with its worker (KilledWorker and the like) becomes a failed sample.
-    `check`, if given, is called first with a `map(function, items)` that runs on the
-    cluster's workers (the samples' validation, in parallel); it raises to refuse the jobs.
+    `check`, if given, validates the samples on the cluster first: every run task
+    depends on the validation tasks and runs only if every sample is valid; otherwise
+    the check's refusal (UserError) is raised here and no sample has run.
     """
     workers = max(1, min(len(jobs), os.cpu_count() or 1))
     client, cluster = _client(scheduler, workers, cluster_options)
     try:
+        checks = check.submit(client, _threads(client)) if check is not None else []
+        if checks:  # each run task gets the checks' futures as arguments: its dependencies
+            futures = client.map(partial(_gated, task), [checks] * len(jobs), *zip(*jobs), pure=False)
+        else:
+            futures = client.map(task, *zip(*jobs), pure=False)
         if check is not None:
-            check(lambda function, items: client.gather(client.map(function, items, pure=False)))
-        futures = client.map(task, *zip(*jobs), pure=False)
+            check.refuse(client.gather(checks))  # raises if a sample is invalid: nothing ran
         results = []
         for (index, _, _), future in zip(jobs, futures):
             try:
@@ -407,7 +484,9 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
     roots = import_roots(scenario_path)
     check = None
     if run_fn is None:  # real runs: refuse a bad scenario or sample before the first one
-        check = _sample_check(scenario_path, [overrides for _, overrides, _ in jobs], roots)
+        # joining a running cluster, nothing is saved by checking a sample here first
+        check = SampleCheck(scenario_path, [overrides for _, overrides, _ in jobs], roots,
+                            local=0 if scheduler else 1)
     task = partial(_run_task, run_fn or run_scenario_sample, scenario_path, transport, roots)
     outcomes = execute_samples(task, jobs, scheduler, cluster_options, check)
     results = [SampleResult(i, [float(x) for x in row], status, metrics, error)

@@ -22,10 +22,18 @@ from pathlib import Path
 from typing import Any
 
 from cosim.errors import FmuInterfaceError
+from cosim.fmu.interface import file_sha256
 
 _GUID_LIKE = re.compile(rb"\{[0-9A-Fa-f]{8}-[0-9A-Fa-f]{4}-[0-9A-Fa-f]{4}-[0-9A-Fa-f]{4}-"
                         rb"[0-9A-Fa-f]{12}\}")
 _LIBRARY_SUFFIX = {"linux": ".so", "darwin": ".dylib", "windows": ".dll"}
+
+
+# the entry names of archives that passed the CRC and GUID checks in this process, by
+# (SHA-256 of the file, GUID, binary): the samples of a sweep on one worker decompress
+# an FMU once (testzip reads every entry), whatever path its bytes are found at
+ARCHIVES_KEPT = 16
+_passed: dict[tuple[str, str, str], tuple[str, ...]] = {}
 
 
 def check_archive(path: Path, interface: Any, local: bool = True) -> Path:
@@ -40,11 +48,8 @@ def check_archive(path: Path, interface: Any, local: bool = True) -> Path:
             binary for this platform (naming the platforms the FMU has), or
             sources that do not compile.
     """
-    with zipfile.ZipFile(path) as archive:
-        _check_crc(archive, path)
-        names = archive.namelist()
-        binary = _binary_name(interface)
-        _check_guid(interface, path, archive.read(binary) if binary in names else b"")
+    binary = _binary_name(interface)
+    names = _checked_names(path, interface, binary)
     if not local or binary in names:
         return path
     platforms = _platforms(names, interface.model_identifier)
@@ -53,6 +58,20 @@ def check_archive(path: Path, interface: Any, local: bool = True) -> Path:
             f"{path}: no binary for this platform ({binary}); the FMU has binaries for: "
             f"{', '.join(platforms) or 'no platform'} and no C sources to compile")
     return compiled_copy(path, interface, platforms)
+
+
+def _checked_names(path: Path, interface: Any, binary: str) -> list[str]:
+    """The archive's entry names once its CRC and GUID checks passed (see `_passed`)."""
+    key = (file_sha256(path), interface.guid, binary)
+    if key not in _passed:
+        with zipfile.ZipFile(path) as archive:
+            _check_crc(archive, path)
+            names = archive.namelist()
+            _check_guid(interface, path, archive.read(binary) if binary in names else b"")
+        if len(_passed) >= ARCHIVES_KEPT:
+            _passed.pop(next(iter(_passed)))  # the oldest
+        _passed[key] = tuple(names)
+    return list(_passed[key])
 
 
 def _check_crc(archive: zipfile.ZipFile, path: Path) -> None:

@@ -31,6 +31,11 @@ if TYPE_CHECKING:
     from cosim.scenario.models import Scenario
 
 SIGNAL_CAUSALITIES = ("input", "output", "parameter")
+# model descriptions read in this process, by the SHA-256 of their FMU file: the samples
+# of a sweep that follow each other on a worker read an FMU's XML once (fmpy's parse and
+# schema check cost ~2.5 ms a time); the file's bytes, not its path, are the key
+DESCRIPTIONS_KEPT = 16
+_descriptions: dict[str, Any] = {}
 
 
 class ParameterInfo(NamedTuple):
@@ -107,7 +112,7 @@ def describe_fmu(path: str | Path, variables: Mapping[str, str] | None = None,
             name missing from the FMU or not a numeric input, output or parameter.
     """
     fmu = Path(path)
-    md = _read_description(fmu)
+    md, digest = _description(fmu)
     fmi_type, identity = _fmi_type(md, kind, fmu)
     names = _canonical_names(md.modelVariables, dict(variables or {}), fmu, origin)
     inputs: list[Port] = []
@@ -133,7 +138,7 @@ def describe_fmu(path: str | Path, variables: Mapping[str, str] | None = None,
     return FmuInterface(
         path=fmu, fmi_version=md.fmiVersion, model_name=md.modelName or "",
         model_identifier=identity.modelIdentifier, guid=md.guid or "",
-        sha256=_sha256(fmu), inputs=tuple(inputs), outputs=tuple(outputs),
+        sha256=digest, inputs=tuple(inputs), outputs=tuple(outputs),
         parameters=parameters, value_references=refs,
         fmu_names={canonical: fmu_name for fmu_name, canonical in names.items()},
         unsupported=unsupported, not_recorded=not_recorded, model_description=md, fmi_type=fmi_type)
@@ -151,10 +156,26 @@ def _fmi_type(md: Any, kind: str | None, fmu: Path) -> tuple[str, Any]:
     return ("CoSimulation" if kind == "co_simulation" else "ModelExchange"), offered[kind]
 
 
-def _read_description(fmu: Path) -> Any:
-    """fmpy's model description of an FMU file, or a clear FmuInterfaceError."""
+def _description(fmu: Path) -> tuple[Any, str]:
+    """(fmpy's model description, SHA-256) of an FMU file; a description already read in
+    this process from the same bytes is reused (callers only read it)."""
     if not fmu.is_file():
         raise FmuInterfaceError(f"{fmu}: FMU file not found")
+    before = file_sha256(fmu)
+    md = _descriptions.get(before)
+    if md is not None:
+        return md, before
+    md = _read_description(fmu)
+    after = file_sha256(fmu)
+    if after == before:  # kept only if the file did not change while it was read
+        if len(_descriptions) >= DESCRIPTIONS_KEPT:
+            _descriptions.pop(next(iter(_descriptions)))  # the oldest
+        _descriptions[after] = md
+    return md, after
+
+
+def _read_description(fmu: Path) -> Any:
+    """fmpy's model description of an FMU file, or a clear FmuInterfaceError."""
     if not zipfile.is_zipfile(fmu):
         raise FmuInterfaceError(f"{fmu}: not an FMU (an FMU is a zip archive; this file is not)")
     with zipfile.ZipFile(fmu) as archive:
@@ -280,7 +301,7 @@ def _start_value(text: Any) -> float | None:
     return _float_or_none(text)
 
 
-def _sha256(path: Path) -> str:
+def file_sha256(path: Path) -> str:
     """Hex SHA-256 of a file."""
     digest = hashlib.sha256()
     with path.open("rb") as stream:

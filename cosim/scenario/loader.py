@@ -93,7 +93,7 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
         raise ScenarioError(file, [Problem("", None, "scenario file not found")]) from None
     except YamlLimitError as exc:
         raise ScenarioError(file, [Problem("", exc.line, exc.problem)]) from None
-    data, lines, problems = load_yaml(text)
+    data, lines, problems = _loaded_yaml(text)
     if problems and data is None:
         raise ScenarioError(file, problems)
     if data is None:
@@ -106,6 +106,22 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
                                        "(name, duration, tick, components, ...)"))
         raise ScenarioError(file, problems)
     return _validate(data, file, lines, problems)
+
+
+# the YAML documents loaded in this process, by their text: the samples of a sweep load
+# one file again and again (composing it with lines is most of a load, ~2 ms), and each
+# load gets its own copy, which its overrides then change
+YAML_KEPT = 8
+_loaded: dict[str, tuple[Any, LineMap, list[Problem]]] = {}
+
+
+def _loaded_yaml(text: str) -> tuple[Any, LineMap, list[Problem]]:
+    """`load_yaml(text)`, as a fresh copy of the document loaded before from the same text."""
+    if text not in _loaded:
+        if len(_loaded) >= YAML_KEPT:
+            _loaded.pop(next(iter(_loaded)))  # the oldest
+        _loaded[text] = load_yaml(text)
+    return copy.deepcopy(_loaded[text])
 
 
 def scenario_from_dict(document: dict, overrides: Sequence[str] = ()) -> Scenario:

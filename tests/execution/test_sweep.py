@@ -247,29 +247,114 @@ def test_samples_in_one_worker_give_the_runs_of_each_sample_alone(tmp_path):
             assert alone_metrics[name] == value
 
 
-def test_samples_after_the_first_are_validated_through_the_cluster_map(tmp_path):
+class _InlineClient:
+    """A stand-in for a Dask client: `submit` runs the function now and records its items."""
+
+    def __init__(self):
+        self.submitted: list[list[list[str]]] = []
+
+    def submit(self, function, *args, pure=True):
+        self.submitted.append(args[-1])
+        return function(*args)
+
+
+def test_samples_after_the_first_are_validated_on_the_cluster_in_one_task_per_thread(tmp_path):
     from cosim.errors import UserError
-    from cosim.execution.sweep import _sample_check
+    from cosim.execution.sweep import SampleCheck
     from tests.helpers.components import GOOD
 
     scenario = tmp_path / "gain.yaml"
     scenario.write_text(GOOD)
-    samples = [["duration=0.5"], ["duration=0.505"], ["duration=0.3"]]
-    mapped: list[list[list[str]]] = []
-
-    def cluster_map(function, items):
-        mapped.append(list(items))
-        return list(map(function, items))
-
-    check = _sample_check(scenario, samples, ())  # the first is valid: nothing raised yet
+    samples = [["duration=0.5"], ["duration=0.505"], ["duration=0.3"], ["duration=0.2"]]
+    check = SampleCheck(scenario, samples, ())  # the first is valid: nothing raised yet
+    client = _InlineClient()
+    found = check.submit(client, threads=2)
+    assert client.submitted == [[samples[1], samples[3]], [samples[2]]]
     with pytest.raises(UserError) as refused:
-        check(cluster_map)
-    assert mapped == [samples[1:]]
+        check.refuse(found)
     lines = str(refused.value).splitlines()
-    assert lines[0] == f"{scenario}: sweep refused before its first run: 1 of 3 samples are invalid:"
+    assert lines[0] == f"{scenario}: sweep refused before its first run: 1 of 4 samples are invalid:"
     assert lines[1].startswith("sample 1 (duration=0.505): ") and len(lines) == 2
     assert "whole number of ticks" in lines[1]
     # a first sample that is invalid: refused at once, every sample checked here
     with pytest.raises(UserError, match="2 of 3 samples are invalid"):
-        _sample_check(scenario, [samples[1], samples[0], ["duration=0.111"]], ())
-    _sample_check(scenario, samples[:1] + samples[2:], ())(cluster_map)  # all valid: no error
+        SampleCheck(scenario, [samples[1], samples[0], ["duration=0.111"]], ())
+    valid = SampleCheck(scenario, samples[:1] + samples[2:], ())
+    valid.refuse(valid.submit(_InlineClient(), threads=8))  # all valid: no error
+    # joining a running cluster: every sample is checked there, none here
+    remote = SampleCheck(scenario, samples, (), local=0)
+    client = _InlineClient()
+    with pytest.raises(UserError, match="1 of 4 samples are invalid:\nsample 1 "):
+        remote.refuse(remote.submit(client, threads=3))
+    assert client.submitted == [[samples[0], samples[3]], [samples[1]], [samples[2]]]
+
+
+@pytest.mark.parametrize("count", [1, 2, 3, 7])
+def test_chunks_deal_every_index_once(count):
+    from cosim.execution.sweep import chunks
+
+    dealt = chunks(list("abcde"), count)
+    assert sorted(i for chunk in dealt for i in chunk) == list(range(5))
+    assert len(dealt) == min(count, 5) and all(dealt)
+    assert max(map(len, dealt)) - min(map(len, dealt)) <= 1
+    assert chunks([], count) == []
+
+
+PICKY = """\
+from cosim.component import Component, ComponentError, Port
+
+
+class Picky(Component):
+    inputs = (Port("x"),)
+    outputs = (Port("y"),)
+
+    def __init__(self, k):
+        if k > 2.0:
+            raise ComponentError(f"k = {k} is above 2")
+        self.k = k
+
+    def step(self, t, inputs):
+        return {"y": self.k * inputs["x"]}
+"""
+
+
+def test_an_invalid_sample_on_the_cluster_stops_every_run(tmp_path):
+    """The runs wait, on the cluster, for the workers' validation: one sample invalid there,
+    and no sample runs."""
+    from distributed import LocalCluster
+
+    from cosim.errors import UserError
+    from tests.helpers.components import GOOD
+
+    (tmp_path / "picky_gain.py").write_text(PICKY)
+    scenario = tmp_path / "picky.yaml"
+    scenario.write_text(GOOD.replace("tests.helpers.components:Gain", "picky_gain:Picky"))
+    points = sample_points([parse_vary("components.gain.parameters.k=0:3")], 3, seed=1)[:, 0]
+    invalid = [i for i, k in enumerate(points) if k > 2.0]
+    assert len(invalid) == 1  # one point per third of the range
+    with LocalCluster(processes=False, n_workers=2, threads_per_worker=1,
+                      dashboard_address=None) as cluster:
+        with pytest.raises(UserError, match=f"1 of 3 samples are invalid:\\nsample {invalid[0]} "):
+            run_sweep(scenario, ["components.gain.parameters.k=0:3"], 3, seed=1,
+                      scheduler=cluster.scheduler_address, out_dir=tmp_path / "out")
+    assert not list((tmp_path / "out" / "samples").iterdir())
+
+
+def test_the_cluster_a_sweep_starts_slows_dask_periodic_work():
+    """The scheduler and the workers of `local_cluster` tick every second, not every 20 ms
+    (CPU the client's process would take from busy workers), and its worker processes do not
+    profile their tasks; Dask's own defaults are untouched."""
+    import dask
+    from distributed import Client
+
+    from cosim.execution.sweep import local_cluster
+
+    def profiling() -> bool:
+        return dask.config.get("distributed.worker.profile.enabled")
+
+    with local_cluster(1, processes=False) as cluster:
+        assert cluster.scheduler._tick_interval == 1.0
+        assert [w._tick_interval for w in cluster.workers.values()] == [1.0]
+    with local_cluster(1) as cluster, Client(cluster) as client:  # a worker process
+        assert list(client.run(profiling).values()) == [False]
+    assert dask.config.get("distributed.admin.tick.interval") == "20ms" and profiling()

@@ -114,6 +114,23 @@ def test_a_corrupted_entry_fails_its_crc(tmp_path, test_fmu) -> None:
         "(export or copy the FMU again)")
 
 
+def test_an_archive_checked_once_is_checked_again_when_its_bytes_change(tmp_path, test_fmu) -> None:
+    """The checks passed are kept by the file's SHA-256 (a sweep's samples decompress the
+    FMU once per worker), so the same path with other bytes is checked afresh."""
+    fmu = rewrite_fmu(test_fmu("Lag", 2), tmp_path / "crc.fmu")
+    with zipfile.ZipFile(fmu) as archive:
+        entries = {i.filename: archive.read(i) for i in archive.infolist()}
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_STORED) as archive:
+        for name, data in entries.items():
+            archive.writestr(name, data)
+    validate_scenario(load_scenario(scenario(tmp_path, fmu)))  # passes, and is kept
+    text = entries["sources/model.c"]
+    raw = fmu.read_bytes()
+    at = raw.index(text)
+    fmu.write_bytes(raw[:at] + text.replace(b"exp(", b"EXP(", 1) + raw[at + len(text):])
+    assert validate_error(tmp_path, fmu).endswith("fails its CRC check (export or copy the FMU again)")
+
+
 @pytest.mark.parametrize("version", [2, 3])
 def test_a_guid_the_binary_does_not_hold(tmp_path, test_fmu, version) -> None:
     original = test_fmu("Lag", version)

@@ -83,6 +83,18 @@ def make_fmu(folder: Path, xml: str | None, name: str = "plant.fmu") -> Path:
     return path
 
 
+def test_a_description_is_read_once_per_content_not_per_path(tmp_path: Path) -> None:
+    fmu = make_fmu(tmp_path, fmi2_xml())
+    first = describe_fmu(fmu)
+    (tmp_path / "copy.fmu").write_bytes(fmu.read_bytes())
+    copy = describe_fmu(tmp_path / "copy.fmu")
+    assert copy.model_description is first.model_description  # same bytes: parsed once
+    assert copy.path == tmp_path / "copy.fmu" and copy.sha256 == first.sha256
+    changed = make_fmu(tmp_path, fmi2_xml().replace('guid="{1234-abcd}"', 'guid="{5678-ef01}"'))
+    again = describe_fmu(changed)  # the first file's path, other bytes: read afresh
+    assert again.guid == "{5678-ef01}" and again.model_description is not first.model_description
+
+
 def test_fmi2_interface_is_read_under_canonical_names(tmp_path: Path) -> None:
     fmu = make_fmu(tmp_path, fmi2_xml())
     iface = describe_fmu(fmu, {"delta_cmd": "steer", "x": "pos.x", "m": "mass"})

@@ -172,6 +172,22 @@ def test_overrides_are_yaml_values_at_dotted_paths(lane_change: Path) -> None:
     assert s.record.include == ["vehicle.*"]
 
 
+def test_loads_of_one_file_do_not_share_their_overrides(lane_change: Path) -> None:
+    """The document parsed once per text is copied for each load: one load's overrides
+    (which change the document and its line map) are not seen by the next; a changed
+    file is parsed again."""
+    overridden = load_scenario(lane_change, ["components.controller.parameters.ke=2.0",
+                                             "components.vehicle.parameters.m=900"])
+    assert overridden.components["controller"].parameters["ke"] == 2.0
+    plain = load_scenario(lane_change)
+    assert plain.components["controller"].parameters == {"ls": 5.0, "ke": [1, 2]}
+    assert plain.components["vehicle"].parameters == {"vx0": 10.0, "m": 1500.0}
+    mass = ("components", "vehicle", "parameters", "m")
+    assert ":8: " in plain.where(mass) and ":8: " not in overridden.where(mass)
+    lane_change.write_text(lane_change.read_text().replace("ls: 5.0", "ls: 6.0"))
+    assert load_scenario(lane_change).components["controller"].parameters["ls"] == 6.0
+
+
 def test_dump_round_trips(lane_change: Path) -> None:
     s = load_scenario(lane_change)
     dumped = s.model_dump(mode="json")

@@ -313,3 +313,46 @@ def test_double_lane_change_with_offsets_and_lengths():
     with pytest.raises(ComponentError, match="transitions overlap"):
         Planner(road="two_lane", manoeuvre={"type": "lane_change", "changes": [
             {"at": 100, "to_lane": 1}, {"at": 110, "to_lane": 0}]})
+
+
+def test_routes_are_laid_out_once_per_parameters_and_first_state(monkeypatch):
+    """A planner with the parameters and first vehicle state of an earlier one (a sweep's
+    next sample on the same worker) reuses its routes and steps as if it had laid them out."""
+    import controllers.planning.planner as planner_module
+
+    monkeypatch.setattr(planner_module, "_routes", {})
+    params = {"road": {"builder": "two_lane", "length": 600, "radius": 200},
+              "manoeuvre": {"type": "obstacle_avoidance", "margin": 0.5, "obstacles": [OBSTACLE]},
+              "speed": {"v_max": 10.0}}
+    first, again = Planner(**params), Planner(**params)
+    outputs = [start(first, vx=0.0)]
+    assert start(again, vx=0.0).keys() == outputs[0].keys()
+    assert again.ref_route is first.ref_route and again.grid is first.grid
+    assert again.alt_route is first.alt_route
+    monkeypatch.setattr(planner_module, "_routes", {})  # a planner that lays out its own
+    alone = Planner(**params)
+    reference = start(alone, vx=0.0)
+    assert alone.ref_route is not first.ref_route
+    stations = np.linspace(5.0, 400.0, 40)
+    for shared, own in zip(drive(again, stations), drive(alone, stations)):
+        assert shared.keys() == own.keys()
+        for name, value in own.items():
+            np.testing.assert_array_equal(shared[name], value, err_msg=name)
+    for name, value in reference.items():
+        np.testing.assert_array_equal(outputs[0][name], value, err_msg=name)
+    # another speed limit, another first state: laid out afresh
+    slower = Planner(**{**params, "speed": {"v_max": 8.0}})
+    start(slower, vx=0.0)
+    assert slower.ref_route is not alone.ref_route
+    moved = Planner(**params)
+    start(moved, vx=0.5)
+    assert moved.ref_route is not alone.ref_route
+
+
+def test_routes_of_a_road_read_from_a_file_are_not_kept():
+    from controllers.planning.planner import _parameters_key
+
+    assert _parameters_key({"road": {"opendrive": "/x/track.xodr", "road": "1"}}) is None
+    assert _parameters_key({"road": "satory_standin", "speed": {"v_max": 1}}) != \
+        _parameters_key({"road": "satory_standin", "speed": {"v_max": 1.0}})
+    assert _parameters_key({"road": "satory_standin", "lane": object()}) is None

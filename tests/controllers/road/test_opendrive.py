@@ -174,3 +174,15 @@ def test_bad_files_name_the_file_and_element(tmp_path):
     file = write_xodr(tmp_path, '<geometry s="0" x="0" y="zero" hdg="0" length="50"><line/></geometry>', 50.0)
     with pytest.raises(SpecError, match=r"<geometry y='zero'> is not a number"):
         road_from_spec(spec(file))
+
+
+def test_a_road_read_from_a_file_is_read_again_each_time(tmp_path):
+    """Roads are kept per process by their spec, except those of an OpenDRIVE file."""
+    file = write_xodr(tmp_path, '<geometry s="0" x="0" y="0" hdg="0" length="50"><line/></geometry>', 50.0)
+    first = road_from_spec(spec(file, lane=-1))
+    assert road_from_spec(spec(file, lane=-1)) is not first
+    write_xodr(tmp_path, '<geometry s="0" x="0" y="0" hdg="0" length="60"><line/></geometry>', 60.0)
+    assert road_from_spec(spec(file, lane=-1)).length != first.length
+    built = road_from_spec({"builder": "two_lane", "length": 600, "radius": 200})
+    assert road_from_spec({"builder": "two_lane", "length": 600, "radius": 200}) is built
+    assert road_from_spec({"builder": "two_lane", "length": 600.0, "radius": 200}) is not built
