@@ -20,6 +20,7 @@ command.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import datetime
 import json
 import os
@@ -164,7 +165,17 @@ def machine_line() -> str:
                 break
     except OSError:
         pass
-    return f"{os.cpu_count()} cores ({model})"
+    return f"{os.cpu_count()} cores ({model}); {projection_line()}"
+
+
+def projection_line() -> str:
+    """Which window projection the controllers of these runs use (COSIM_JIT, numba installed or not)."""
+    mode = os.environ.get("COSIM_JIT", "auto")
+    found = importlib.util.find_spec("numba") is not None
+    compiled = mode.strip().lower() in ("on", "1", "yes", "true") or (found and mode.strip().lower() in ("auto", ""))
+    how = "compiled (numba installed)" if compiled else ("interpreted (numba not installed)" if not found
+                                                         else "interpreted")
+    return f"controllers' projection {how}, COSIM_JIT={mode} (bench_closed_loop measures both)"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
