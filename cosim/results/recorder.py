@@ -64,6 +64,7 @@ SIGNALS_FILE = "signals.csv"
 ARRAYS_DIR = "arrays"
 WRITER_SCRIPT = Path(__file__).with_name("csv_writer.py")
 WRITER_STALL_S = 10.0  # a writer that converts nothing for this long is given up
+HOUSEKEEPING_ROWS = 15  # start the writer when due and check the folder every 16 rows
 FOLDER_CHECK_ROWS = 255  # look for a removed run folder every 256 rows (one fstat)
 WINDOW_BYTES = 1 << 20  # mmap window of a spool (about; whole rows and pages)
 
@@ -117,17 +118,19 @@ class _Table:
         step = math.lcm(self.row_bytes, mmap.ALLOCATIONGRANULARITY)
         self.window_bytes = step * max(1, WINDOW_BYTES // step)  # whole rows, whole pages
         self.window: mmap.mmap | None = None
-        self.base = self.pos = self.end = 0  # data bytes: window start, written, window end
+        # data bytes: where the window starts, how far into it rows are written, its size
+        self.base = self.at = self.limit = 0
         self.rows = 0
+        self.source: memoryview | None = None  # an array table's slice of the master's buffer
 
     def next_window(self) -> None:
         """Allocate and map the next window of the spool (the current one is full)."""
         if self.window is not None:
             self.window.close()
-        start = DATA_OFFSET + self.end
-        os.posix_fallocate(self.fd, start, self.window_bytes)
-        self.window = mmap.mmap(self.fd, self.window_bytes, offset=start)
-        self.base, self.end = self.end, self.end + self.window_bytes
+        base = self.base + self.limit
+        os.posix_fallocate(self.fd, DATA_OFFSET + base, self.window_bytes)
+        self.window = mmap.mmap(self.fd, self.window_bytes, offset=DATA_OFFSET + base)
+        self.base, self.at, self.limit = base, 0, self.window_bytes
 
     def close(self) -> None:
         """Unmap and cut the spool to its complete rows (safe to call twice)."""
@@ -137,7 +140,7 @@ class _Table:
                 self.window = None
             self.count.release()
             self._count_map.close()
-            os.ftruncate(self.fd, DATA_OFFSET + self.pos)
+            os.ftruncate(self.fd, DATA_OFFSET + self.base + self.at)
             os.close(self.fd)
             self.fd = -1
 
@@ -208,8 +211,8 @@ class Recorder:
                   if selected(n, self.include, self.exclude)]
         self.columns = [n for n, _ in chosen]
         index = [i for _, i in chosen]
-        self._pick = operator.itemgetter(*index) if len(index) > 1 \
-            else (lambda values: [values[i] for i in index])
+        self._pick: Any = None if index == list(range(len(master.values))) else \
+            operator.itemgetter(*index) if len(index) > 1 else (lambda values: [values[i] for i in index])
         self._pack_into = struct.Struct(f"={1 + len(index)}d").pack_into
         self._pack_time_into = struct.Struct("=d").pack_into
         integer = {f"{c}.{p}" for (c, p), port in layout.ports.items() if is_integer(port.type)}
@@ -247,31 +250,35 @@ class Recorder:
     def after_tick(self, tick: int, t: float, values: list[float], arrays: np.ndarray) -> None:
         """Write this tick's raw rows into the spools (in the kernel from here on)."""
         table = self._signals
-        if table.pos == table.end:
-            self._next_window(table, tick)
-        pos = table.pos
-        self._pack_into(table.window, pos - table.base, t, *self._pick(values))
-        table.pos = pos + table.row_bytes
-        table.rows += 1
-        table.count[0] = table.rows  # after the row: a reader never counts a row not written
+        at = table.at
+        if at == table.limit:
+            at = self._next_window(table, tick)
+        pick = self._pick  # None: every value of the store, in its order
+        self._pack_into(table.window, at, t, *(values if pick is None else pick(values)))
+        table.at = at + table.row_bytes
+        self.rows = table.rows = rows = table.rows + 1
+        table.count[0] = rows  # after the row: a reader never counts a row not written
         for period, tables in self._array_groups:
-            if tick % period == 0:
-                if arrays is not self._arrays_seen:  # a memoryview made once, not per tick
-                    self._arrays_seen, self._arrays_view = arrays, memoryview(arrays).cast("B")
-                for table in tables:
-                    self._write_array_row(table, t)
-        self.rows += 1
-        if not self.rows & FOLDER_CHECK_ROWS:
-            self._check_folder(tick)
+            if not tick % period:
+                self._write_array_rows(tables, tick, t, arrays)
+        if not rows & HOUSEKEEPING_ROWS:
+            self._housekeeping(tick)
+
+    def _housekeeping(self, tick: int) -> None:
+        """Every 16 rows, not per tick: start the writer when due, look for a removed folder."""
         if not self._writer_tried and time.monotonic() - self._started >= self.flush_interval:
             self._start_writer()
+        if not self.rows & FOLDER_CHECK_ROWS:
+            self._check_folder(tick)
 
-    def _next_window(self, table: _Table, tick: int) -> None:
-        """Map the table's next spool window; a full disk is a RunFolderError at this tick."""
+    def _next_window(self, table: _Table, tick: int) -> int:
+        """Map the table's next spool window (rows go from its offset 0, returned);
+        a full disk is a RunFolderError at this tick."""
         try:
             table.next_window()
         except OSError as exc:
             raise self._failure(exc, tick) from None
+        return 0
 
     def _check_folder(self, tick: int) -> None:
         """Rows written through the mmap go on into a removed file: look for its link now and then."""
@@ -282,16 +289,30 @@ class Recorder:
         if removed:
             raise self._failure(RunFolderError(self.out_dir, "the spool was removed", tick), tick)
 
-    def _write_array_row(self, table: _Table, t: float) -> None:
-        if table.pos == table.end:
-            self._next_window(table, self.rows)
-        at = table.pos - table.base
-        self._pack_time_into(table.window, at, t)
-        table.window[at + 8:at + table.row_bytes] = \
-            self._arrays_view[table.offset * 8:table.stop * 8]
-        table.pos += table.row_bytes
-        table.rows += 1
-        table.count[0] = table.rows
+    def _write_array_rows(self, tables: list[_Table], tick: int, t: float,
+                          arrays: np.ndarray) -> None:
+        """One row (the time, then the array's values) into each table of a due group."""
+        if arrays is not self._arrays_seen:  # memoryviews made once, not per row
+            self._see_arrays(arrays)
+        pack_time_into = self._pack_time_into
+        for table in tables:
+            at = table.at
+            if at == table.limit:
+                at = self._next_window(table, tick)
+            window, end = table.window, at + table.row_bytes
+            pack_time_into(window, at, t)
+            window[at + 8:end] = table.source
+            table.at = end
+            table.rows = rows = table.rows + 1
+            table.count[0] = rows
+
+    def _see_arrays(self, arrays: np.ndarray) -> None:
+        """Point each array table at its slice of the master's array buffer."""
+        view = memoryview(arrays).cast("B")
+        for _, tables in self._array_groups:
+            for table in tables:
+                table.source = view[table.offset * 8:table.stop * 8]
+        self._arrays_seen = arrays
 
     def _failure(self, exc: Exception, tick: int) -> RunFolderError:
         """Remember the first folder failure (the recorder writes nothing more) and return it."""

@@ -224,6 +224,27 @@ def test_csv_bytes_equal_the_direct_repr_formatting(tmp_path, flush_interval):
     assert not list(tmp_path.rglob("*.f64*"))
 
 
+def test_rows_across_many_spool_windows_and_a_replaced_array_buffer(tmp_path, monkeypatch):
+    """Windows of one page (rows straddle none: each window holds whole rows), and a store
+    whose array buffer is a new object from tick 7 on: every CSV byte as the reference."""
+    import cosim.results.recorder as recorder_module
+
+    monkeypatch.setattr(recorder_module, "WINDOW_BYTES", 1)
+
+    class NewBuffer:
+        def begin(self, master):
+            self.master = master
+
+        def after_tick(self, tick, t, values, arrays):
+            if tick == 6:
+                self.master.arrays = self.master.arrays.copy()
+
+    master, snaps = _run(tmp_path, ticks=600, extra=[NewBuffer()], flush_interval=1e9)
+    assert snaps.recorder._arrays_seen is master.arrays
+    for name, expected in expected_files(master, snaps).items():
+        assert (tmp_path / name).read_bytes() == expected, name
+
+
 def test_csv_grows_while_the_run_goes(tmp_path):
     """The writer process converts the spool during the run, not only at close."""
     grown = []
