@@ -245,6 +245,24 @@ def test_rows_across_many_spool_windows_and_a_replaced_array_buffer(tmp_path, mo
         assert (tmp_path / name).read_bytes() == expected, name
 
 
+@pytest.mark.parametrize("populate", ["one-page", "kernel-refuses"])
+def test_pages_faulted_in_ahead_of_the_rows_or_not(tmp_path, monkeypatch, populate):
+    """The spool's pages made ready ahead of the rows a page at a time (rows straddle
+    pages), or by the rows' own writes when madvise is refused (an older kernel):
+    every CSV byte as the reference either way."""
+    import cosim.results.recorder as recorder_module
+
+    monkeypatch.setattr(recorder_module, "POPULATE_BYTES", 4096)
+    if populate == "kernel-refuses":
+        monkeypatch.setattr(recorder_module, "MADV_POPULATE_WRITE", -1)  # EINVAL
+    master, snaps = _run(tmp_path, ticks=700, flush_interval=1e9)
+    tables = snaps.recorder._tables
+    assert all(t.populate == (populate == "one-page") for t in tables)
+    assert all(t.ready >= t.at and t.ready % 4096 == 0 for t in tables)
+    for name, expected in expected_files(master, snaps).items():
+        assert (tmp_path / name).read_bytes() == expected, name
+
+
 def test_csv_grows_while_the_run_goes(tmp_path):
     """The writer process converts the spool during the run, not only at close."""
     grown = []
