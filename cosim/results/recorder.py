@@ -43,6 +43,7 @@ import math
 import mmap
 import operator
 import os
+import select
 import struct
 import subprocess
 import sys
@@ -431,9 +432,11 @@ class Recorder:
             except OSError:
                 pass  # it died: its exit status says so below
         writer.stdin = None  # closed: communicate() must not flush it
-        if not _wait_while_progressing(writer, [t.header.csv_path for t in self._tables]):
+        out = _read_while_progressing(writer, [t.header.csv_path for t in self._tables])
+        if out is None:
             return f"CSV writer process made no progress for {WRITER_STALL_S:g} s"
-        out, err = writer.communicate()
+        rest, err = writer.communicate()
+        out += rest
         if writer.returncode != 0:
             last = err.decode(errors="replace").strip().splitlines()[-1:] or ["no message"]
             return f"CSV writer process exited with status {writer.returncode}: {last[0]}"
@@ -449,21 +452,30 @@ class Recorder:
         return None
 
 
-def _wait_while_progressing(process: subprocess.Popen[bytes], outputs: list[Path]) -> bool:
-    """Wait for a process that keeps growing `outputs`; kill it after a stall (False)."""
+def _read_while_progressing(process: subprocess.Popen[bytes], outputs: list[Path]) -> bytes | None:
+    """The process's stdout, read to its end (the writer exits after its report), while it
+    keeps growing `outputs`; after a stall it is killed (None).
+
+    Woken by the pipe, not by polling: `Popen.wait(timeout)` sleeps 0.5, 1, 2, ... 50 ms
+    between looks, which kept a run's close waiting up to twice as long as the writer.
+    """
+    assert process.stdout is not None
+    fd, chunks = process.stdout.fileno(), []
     last_size, last_change = -1, time.monotonic()
     while True:
-        try:
-            process.wait(timeout=0.5)
-            return True
-        except subprocess.TimeoutExpired:
-            size = sum(p.stat().st_size for p in outputs if p.exists())
-            if size != last_size:
-                last_size, last_change = size, time.monotonic()
-            elif time.monotonic() - last_change > WRITER_STALL_S:
-                process.kill()
-                process.communicate()
-                return False
+        if select.select([fd], [], [], 0.5)[0]:
+            chunk = os.read(fd, 1 << 16)
+            if not chunk:
+                return b"".join(chunks)
+            chunks.append(chunk)
+            continue
+        size = sum(p.stat().st_size for p in outputs if p.exists())
+        if size != last_size:
+            last_size, last_change = size, time.monotonic()
+        elif time.monotonic() - last_change > WRITER_STALL_S:
+            process.kill()
+            process.communicate()
+            return None
 
 
 def _map_rows(header: SpoolHeader, rows: int) -> tuple[list[str], np.ndarray]:

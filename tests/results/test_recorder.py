@@ -448,6 +448,18 @@ def test_a_stalled_writer_is_killed_and_the_csv_rebuilt(tmp_path, monkeypatch):
         assert (tmp_path / name).read_bytes() == expected, name
 
 
+def test_close_reads_the_writer_report_in_pieces_up_to_its_exit(tmp_path):
+    """The report is read from the pipe as it comes, in as many pieces as the writer
+    writes it, up to the end of the pipe."""
+    from cosim.results.recorder import _read_while_progressing
+
+    code = ("import sys, time; sys.stdout.write('{\"rows\"'); sys.stdout.flush(); "
+            "time.sleep(0.2); print(': {}}')")
+    process = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE)
+    assert _read_while_progressing(process, [tmp_path / "none.csv"]) == b'{"rows": {}}\n'
+    process.wait()
+
+
 def test_a_writer_that_cannot_start_leaves_the_conversion_to_close(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(sys, "executable", str(tmp_path / "no-python"))
     master, snaps = _run(tmp_path / "run", ticks=40, flush_interval=0.0)
