@@ -45,8 +45,8 @@ def crumb_ns(ticks: int) -> float:
 
 def _layout(n: int) -> SimpleNamespace:
     layout = SimpleNamespace(scalar_columns=lambda: [(f"c.s{i}", i) for i in range(n)],
-                             array_signals=lambda: [])
-    return SimpleNamespace(layout=layout, components={})
+                             array_signals=lambda: [], ports={})
+    return SimpleNamespace(layout=layout, components={}, values=[0.0] * n)
 
 
 def recorder_ns(ticks: int, folder: Path) -> float:
