@@ -47,7 +47,6 @@ profile (controllers.planning.following).
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping, Set
 
@@ -59,7 +58,7 @@ from controllers.planning.following import FOLLOWING_OUTPUTS, LEAD_INPUTS, Follo
 from controllers.spec import MAX_LENGTH, MAX_REACH
 from controllers.planning.manoeuvres import (LateralPlan, ManoeuvrePlan, Option, Transition, offset_profile,
                                    plan_manoeuvre, transition_length)
-from controllers.road.builders import Road, frenet_from_base, road_from_spec
+from controllers.road.builders import Road, canonical_key, frenet_from_base, road_from_spec
 from controllers.planning.speed_profile import SpeedLimits, plan_speed
 from controllers.trajectory import FIELDS, WINDOW_POINTS, window_ports
 
@@ -164,16 +163,8 @@ class RoutePlan:
 
 
 def _parameters_key(parameters: dict[str, object]) -> str | None:
-    """A planner's parameters as canonical JSON (floats exactly, 1 and 1.0 apart), the key
-    of its routes in `_routes`; None, and nothing kept, for a road read from a file (its
-    content may change between runs) or a value JSON does not write."""
-    road = parameters["road"]
-    if isinstance(road, Mapping) and "opendrive" in road:
-        return None
-    try:
-        return json.dumps(parameters, sort_keys=True, allow_nan=True)
-    except (TypeError, ValueError):
-        return None
+    """A planner's parameters as the key of its routes in `_routes` (None: nothing kept)."""
+    return canonical_key(parameters, parameters["road"])
 
 
 def window_signals(prefix: str, *fields: np.ndarray) -> dict[str, np.ndarray]:

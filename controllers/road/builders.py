@@ -171,7 +171,7 @@ def road_from_spec(spec, where: str = "road") -> Road:
             {opendrive: file, road: id, lane: id, ...} (controllers.road.opendrive).
         where: location of the spec, for error messages.
     """
-    key = _spec_key(spec)
+    key = canonical_key(spec, spec)
     road = _roads.get(key) if key is not None else None
     if road is None:
         road = _build_road(spec, where)
@@ -182,13 +182,14 @@ def road_from_spec(spec, where: str = "road") -> Road:
     return road
 
 
-def _spec_key(spec) -> str | None:
-    """A road spec as canonical JSON (floats exactly, 1 and 1.0 apart); None for an
-    OpenDRIVE road (its file may change) or a value JSON does not write."""
-    if isinstance(spec, Mapping) and "opendrive" in spec:
+def canonical_key(value, road) -> str | None:
+    """`value` as canonical JSON (floats exactly, 1 and 1.0 apart), a key for what is kept per
+    process; None, keep nothing, when `road` (a road spec) is read from an OpenDRIVE file (its
+    content may change between runs) or JSON cannot write `value`."""
+    if isinstance(road, Mapping) and "opendrive" in road:
         return None
     try:
-        return json.dumps(spec, sort_keys=True, allow_nan=True)
+        return json.dumps(value, sort_keys=True, allow_nan=True)
     except (TypeError, ValueError):
         return None
 
