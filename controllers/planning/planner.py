@@ -58,7 +58,7 @@ from controllers.planning.following import FOLLOWING_OUTPUTS, LEAD_INPUTS, Follo
 from controllers.spec import MAX_LENGTH, MAX_REACH
 from controllers.planning.manoeuvres import (LateralPlan, ManoeuvrePlan, Option, Transition, offset_profile,
                                    plan_manoeuvre, transition_length)
-from controllers.road.builders import Road, canonical_key, frenet_from_base, road_from_spec
+from controllers.road.builders import Road, canonical_key, frenet_from_base, keep, road_from_spec
 from controllers.planning.speed_profile import SpeedLimits, plan_speed
 from controllers.trajectory import FIELDS, WINDOW_POINTS, window_ports
 
@@ -301,9 +301,7 @@ class Planner(Component):
         if kept is None:
             kept = self._lay_out(t0, start, end, from_rest, vx)
             if key is not None:
-                if len(_routes) >= ROUTES_KEPT:
-                    _routes.pop(next(iter(_routes)))  # the oldest
-                _routes[key] = kept
+                keep(_routes, key, kept, ROUTES_KEPT)
         self.grid, self.ref_route, self.alt_route = kept
         self.offset = proj.lateral
         self.holding = False

@@ -176,10 +176,15 @@ def road_from_spec(spec, where: str = "road") -> Road:
     if road is None:
         road = _build_road(spec, where)
         if key is not None:
-            if len(_roads) >= ROADS_KEPT:
-                _roads.pop(next(iter(_roads)))  # the oldest
-            _roads[key] = road
+            keep(_roads, key, road, ROADS_KEPT)
     return road
+
+
+def keep(store: dict, key, value, limit: int) -> None:
+    """store[key] = value, for what a process keeps by content; the oldest entry goes at `limit`."""
+    if len(store) >= limit:
+        store.pop(next(iter(store)))
+    store[key] = value
 
 
 def canonical_key(value, road) -> str | None:

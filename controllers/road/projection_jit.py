@@ -99,7 +99,6 @@ def foot_fields(window, px, py):
     return _evaluate(seg, _refine(seg, t, px, py), i, s, psi, kappa, v, a)
 
 
-
 @_compile
 def cg_and_preview_fields(window, x, y, psi, ls):
     """foot_fields of (x, y) and of the point ls ahead along psi, and that point's coordinates."""

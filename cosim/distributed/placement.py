@@ -6,8 +6,9 @@
 The command line wins over the YAML; `--place NAME=local` brings a component
 back to the master's host, and `--place NAME=inproc` puts a Python component
 into the master's own process (over Zenoh, where each otherwise gets a process
-of its own: one round trip less per step; `in_master_process`). Python components (controllers, planner, sources)
-and FMU components can be placed on workers; an FMU then travels to its worker
+of its own: one round trip less per step; `in_master_process`). Python
+components (controllers, planner, sources) and FMU components can be placed on
+workers; an FMU then travels to its worker
 (see cosim.fmu.remote), which must be started with --allow-fmu.
 """
 

@@ -136,7 +136,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             stack.callback(prestart.close)
         placement = _placement(scenario, place, transport)
         in_master = _in_master_process(scenario, place, transport)
-        prestart = _usable_prestart(prestart, transport, placement, deploy)   # it leaves out `inproc` ones
+        prestart = _usable_prestart(prestart, transport, placement, deploy)  # prestart skips `inproc` ones
         launches = plan_launches(scenario, import_classes=transport != "zenoh")
         launches += _placed_fmu_launches(scenario, placement)
         remote_launches = [launch for launch in launches if launch.name not in in_master]
@@ -224,7 +224,8 @@ def _placement(scenario: Any, place: Sequence[str], transport: str) -> dict[str,
 
 
 def _in_master_process(scenario: Any, place: Sequence[str], transport: str) -> set[str]:
-    """The Python components placed `inproc` (all of them are, with --transport inproc)."""
+    """The Python components placed `inproc` over Zenoh (none with --transport inproc, where every
+    Python component is in this process anyway)."""
     from cosim.distributed.placement import in_master_process
 
     return in_master_process(scenario, place) if transport == "zenoh" else set()

@@ -44,6 +44,7 @@ Example:
 from __future__ import annotations
 
 import copy
+import functools
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -112,16 +113,12 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
 # one file again and again (composing it with lines is most of a load, ~2 ms), and each
 # load gets its own copy, which its overrides then change
 YAML_KEPT = 8
-_loaded: dict[str, tuple[Any, LineMap, list[Problem]]] = {}
+_kept_yaml = functools.lru_cache(maxsize=YAML_KEPT)(load_yaml)
 
 
 def _loaded_yaml(text: str) -> tuple[Any, LineMap, list[Problem]]:
     """`load_yaml(text)`, as a fresh copy of the document loaded before from the same text."""
-    if text not in _loaded:
-        if len(_loaded) >= YAML_KEPT:
-            _loaded.pop(next(iter(_loaded)))  # the oldest
-        _loaded[text] = load_yaml(text)
-    return copy.deepcopy(_loaded[text])
+    return copy.deepcopy(_kept_yaml(text))
 
 
 def scenario_from_dict(document: dict, overrides: Sequence[str] = ()) -> Scenario:
