@@ -29,11 +29,12 @@ functions with the most self time, and `--profile-out FILE` (.html or text) keep
 Run: .venv/bin/python benchmarks/bench_closed_loop.py [--seconds 20] [--repeats 5] [--clock cpu|wall]
      [--controller backstepping|feedforward|stanley|pure_pursuit] [--manoeuvre lane_keeping|lane_change]
      [--profile] [--profile-out FILE] [--profiler pyinstrument|py-spy] [--fmu-host platform|fmpy]
-     [--projection interpreted|compiled|both] [--record-alternative]
+     [--paths interpreted|compiled|both] [--record-alternative]
 
-`--projection` picks the controllers' window projection (controllers.road.projection): the
-interpreted one, the one numba compiles (the `jit` extra; COSIM_JIT), or both in alternating runs,
-each with its own table (the default when numba is installed). Both give the same bits.
+`--paths` picks the controllers' per-tick paths (the window projection, controllers.road.projection,
+and the backstepping step, controllers.backstepping.step_kernel): interpreted, compiled by numba
+(the `jit` extra; COSIM_JIT=on), or both in alternating runs, each with its own table (the default
+when numba is installed). Both give the same bits.
 
 `--fmu-host platform` (the default) hosts the FMU as `cosim run` does: `FmuComponent` through
 the C stepping shim (`cosim.fmu.stepper`, one C call per step); `--fmu-host fmpy` takes the
@@ -67,11 +68,13 @@ from cosim.execution.prepare import prepare_run  # noqa: E402
 from cosim.scenario.loader import load_scenario  # noqa: E402
 from cosim.engine.wiring import resolve_wiring  # noqa: E402
 from cosim.execution import fmu_hosting  # noqa: E402
+from controllers import jit  # noqa: E402
+from controllers.backstepping import step_path  # noqa: E402
 from controllers.road import projection  # noqa: E402
 
 TARGET_RTF = 500.0
-PROJECTIONS = {"interpreted": ("interpreted",), "compiled": ("compiled",), "both": ("interpreted", "compiled")}
-DEFAULT_PROJECTION = "both" if importlib.util.find_spec("numba") else "interpreted"
+PATHS = {"interpreted": ("interpreted",), "compiled": ("compiled",), "both": ("interpreted", "compiled")}
+DEFAULT_PATHS = "both" if importlib.util.find_spec("numba") else "interpreted"
 CLOCKS = {"cpu": time.thread_time, "wall": time.perf_counter}
 CLOCK = time.thread_time      # set from --clock in main()
 CONTROLLERS = {
@@ -215,12 +218,13 @@ def profile_run(prepared, out: str | None, profiler: str) -> None:
         for k in range(1, master.total_ticks + 1):
             master.step_tick(k)
 
-    def step_in(*files: str):
-        return lambda function, path: function in ("step", "step_values") and Path(path).name in files
+    def step_in(*files: str):     # files: path endings, such as "fmu/host.py"
+        return lambda function, path: (function in ("step", "step_values")
+                                       and Path(path).as_posix().endswith(files))
 
-    groups = {"FMU step (FmuComponent.step)": step_in("host.py"),
-              "controller (*Controller.step)": step_in("backstepping.py", "baselines.py"),
-              "planner (Planner.step, amortized)": step_in("planner.py"),
+    groups = {"FMU step (FmuComponent.step)": step_in("fmu/host.py"),
+              "controller (*Controller.step)": step_in("backstepping/component.py", "controllers/baselines.py"),
+              "planner (Planner.step, amortized)": step_in("planning/planner.py"),
               "tick loop (Master.step_tick)": lambda function, path: (
                   function == "step_tick" and Path(path).name == "master.py")}
     try:
@@ -262,9 +266,10 @@ def main() -> None:
     parser.add_argument("--profiler", choices=PROFILERS, default="pyinstrument",
                         help="pyinstrument (in-process, inflates Python code ~2x) or py-spy (attaches "
                              "from outside, needs ptrace rights, no slow-down)")
-    parser.add_argument("--projection", choices=sorted(PROJECTIONS), default=DEFAULT_PROJECTION,
-                        help="the controllers' window projection: interpreted, compiled (numba, the jit "
-                             "extra) or both, alternating (default: both when numba is installed)")
+    parser.add_argument("--paths", choices=sorted(PATHS), default=DEFAULT_PATHS,
+                        help="the controllers' per-tick paths (window projection, backstepping step): "
+                             "interpreted, compiled (numba, the jit extra) or both, alternating (default: "
+                             "both when numba is installed)")
     parser.add_argument("--record-alternative", action="store_true",
                         help="record the planner's alternative window (planner.alt_*), which the Satory "
                              "scenarios leave out, so that the planner plans it at every step")
@@ -278,7 +283,7 @@ def main() -> None:
     CLOCK, FMU_HOST = CLOCKS[args.clock], args.fmu_host
     print(f"machine-speed anchor: {speed_anchor():.1f} ns per pure-Python loop iteration "
           f"(benchmarks.common.speed_anchor); load average {load_average()}")
-    modes = PROJECTIONS[args.projection]
+    modes = PATHS[args.paths]
     with tempfile.TemporaryDirectory() as tmp:
         prepared = prepare_run(load_scenario(write_scenario(Path(tmp), args.seconds, args.controller,
                                                             args.manoeuvre, args.record_alternative)))
@@ -286,11 +291,11 @@ def main() -> None:
         plain, timed = {mode: [] for mode in modes}, {mode: [] for mode in modes}
         for _ in range(args.repeats):
             for mode in modes:      # alternating, so both see the same machine
-                use_projection(mode)
+                use_paths(mode)
                 plain[mode].append(run_once(prepared, timed=False)[0] / ticks * 1e6)
                 timed[mode].append(timed_figures(prepared, ticks))
         if args.profile or args.profile_out:
-            use_projection(modes[-1])
+            use_paths(modes[-1])
             profile_run(prepared, args.profile_out, args.profiler)
     path = " + ".join(sorted(PATHS_SEEN))
     print(f"{args.controller} + planner ({args.manoeuvre}) + Vehicle8DOF ({args.fmu_host} FMU host, {path} path), "
@@ -300,19 +305,20 @@ def main() -> None:
         report(mode, timed[mode], plain[mode], tick, args.clock)
 
 
-def use_projection(mode: str) -> None:
-    """The controllers' window projection for the next runs: 'interpreted' or 'compiled' (numba)."""
-    os.environ[projection.JIT_VARIABLE] = "off" if mode == "interpreted" else "on"
-    projection.compiled_kernel.cache_clear()
-    projection.compiled_kernel()        # imports and loads the compiled code now, not inside a timed run
+def use_paths(mode: str) -> None:
+    """The controllers' paths for the next runs: 'interpreted' or 'compiled' (numba: projection and step)."""
+    os.environ[jit.JIT_VARIABLE] = "off" if mode == "interpreted" else "on"
+    for gate in (projection.compiled_kernel, step_path.compiled_step):
+        gate.cache_clear()
+        gate()        # imports and loads the compiled code now, not inside a timed run
 
 
 def report(mode: str, timed: list[dict], plain: list[float], tick: float, clock: str) -> None:
-    """One projection's table: the best timed run per part and the fastest untimed run's real-time factor."""
+    """One mode's table: the best timed run per part and the fastest untimed run's real-time factor."""
     best = min(timed, key=lambda figures: figures["total"])
     labels = {"vehicle": "FMU step (vehicle)", "controller": "controller (every tick)",
               "planner": "planner (amortized, 1 in 10 ticks)"}
-    print(f"-- projection: {mode}")
+    print(f"-- paths: {mode}")
     print(f"{'part':<36}{'us/tick':>10}{'share':>8}")
     for name, value in best.items():
         share = f"{100 * value / best['total']:>7.0f}%" if name != "total" else ""

@@ -169,13 +169,13 @@ def machine_line() -> str:
 
 
 def projection_line() -> str:
-    """Which window projection the controllers of these runs use (COSIM_JIT, numba installed or not)."""
+    """Which paths (window projection, backstepping step) the controllers of these runs use (COSIM_JIT, numba)."""
     mode = os.environ.get("COSIM_JIT", "auto")
     found = importlib.util.find_spec("numba") is not None
     compiled = mode.strip().lower() in ("on", "1", "yes", "true") or (found and mode.strip().lower() in ("auto", ""))
     how = "compiled (numba installed)" if compiled else ("interpreted (numba not installed)" if not found
                                                          else "interpreted")
-    return f"controllers' projection {how}, COSIM_JIT={mode} (bench_closed_loop measures both)"
+    return f"controllers' projection and step {how}, COSIM_JIT={mode} (bench_closed_loop measures both)"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -50,9 +50,9 @@ def master_overhead(out: str) -> list[dict]:
 
 
 def closed_loop(out: str) -> list[dict]:
-    """bench_closed_loop: the in-process closed loop against 500x real time, one row per projection."""
+    """bench_closed_loop: the in-process closed loop against 500x real time, one row per mode (interpreted, compiled)."""
     rows = []
-    for section in out.split("-- projection: ")[1:]:
+    for section in out.split("-- paths: ")[1:]:
         mode = section.split(maxsplit=1)[0]
         total = _find(rf"untimed runs: {FLOAT} us/tick.*?real-time factor {FLOAT}x", section)
         if not total:
@@ -64,7 +64,8 @@ def closed_loop(out: str) -> list[dict]:
             if found:
                 parts.append(f"{name} {float(found.group(1)):.1f}")
         rtf = float(total.group(2))
-        how = "compiled projection (numba)" if mode == "compiled" else "interpreted projection"
+        how = ("compiled projection and step (numba)" if mode == "compiled"
+               else "interpreted projection and step")
         rows.append(table_row(f"in-process closed loop (Vehicle8DOF + backstepping + planner), 10 ms ticks, {how}",
                               f"{float(total.group(1)):.1f} µs/tick = {rtf:.0f}x real time ({', '.join(parts)} µs)",
                               ">= 500x", rtf >= 500))

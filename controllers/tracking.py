@@ -140,13 +140,25 @@ def path_errors(w: PreparedWindow, x: float, y: float, psi: float, vx: float,
         x, y, psi, vx: the measured CG position, yaw angle and speed.
         ls: preview distance [m].
     Returns:
+        errors_at_feet's tuple.
+    """
+    at_cg, preview = cg_and_preview(w, x, y, psi, ls)
+    return errors_at_feet(at_cg, preview, psi, vx, ls)
+
+
+def errors_at_feet(at_cg: tuple, preview: tuple, psi: float, vx: float, ls: float) -> tuple[float, ...]:
+    """path_errors from the feet of the CG and of the preview point (projection.foot()'s tuples).
+
+    Plain float arithmetic, so that the backstepping step's compiled path
+    (controllers.backstepping.step_jit) compiles this same source.
+
+    Returns:
         (yL, psiL, yc, yc_cg, rho, rho_dot, vx_ref, vx_ref_dot, rho_cg, rho_cg_dot, turn,
         bend): rho and rho_dot at the preview point's foot, the reference speed and its
         rate, the curvature and its rate at the CG's foot, the path's heading change
         from the CG's foot to the preview point's and the preview foot's offset from
         the CG foot's tangent (left positive); see the module docstring.
     """
-    at_cg, preview = cg_and_preview(w, x, y, psi, ls)
     psi_l = (psi - preview[4] + _PI) % _TWO_PI - _PI     # wrap_angle, inlined
     y_l, h_cg = preview[3], at_cg[4]
     turn = (preview[4] - h_cg + _PI) % _TWO_PI - _PI
@@ -276,4 +288,4 @@ def empty_window_outputs(names: tuple[Port, ...], delta: float) -> dict[str, flo
 
 __all__ = ["ActuatorLimits", "COMMAND_OUTPUTS", "CONTROLLER_INPUTS", "InputReader", "PLANT_INPUTS",
            "PLANT_NAMES", "SpeedPI", "SteeringLimiter", "StepClock", "WINDOW_NAMES",
-           "empty_window_outputs", "finite_outputs", "path_errors"]
+           "empty_window_outputs", "errors_at_feet", "finite_outputs", "path_errors"]

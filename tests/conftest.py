@@ -9,9 +9,10 @@ import pytest
 
 from tests.helpers.fmus import FaultyFmus, build_lag
 
-# The suite runs the controllers' interpreted projection (and every component process it starts
-# inherits this): the compiled one (numba) is held to it bit for bit by
-# tests/controllers/road/test_projection_jit.py, which switches it on itself.
+# The suite runs the controllers' interpreted paths (and every component process it starts
+# inherits this): the compiled ones (numba) are held to them bit for bit by
+# tests/controllers/road/test_projection_jit.py and tests/controllers/backstepping/test_step_jit.py,
+# which switch them on themselves.
 os.environ.setdefault("COSIM_JIT", "off")
 
 

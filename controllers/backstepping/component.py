@@ -3,10 +3,12 @@
 `BacksteppingController` wraps the laws of backstepping_longitudinal (eq. 7)
 and backstepping_lateral (eq. 9-13, faithful or feedforward variant), with the
 optional adaptive friction estimate, the actuator limits and the window
-projection. The step runs every tick, so it uses the scalar forms (eq. 7
-inline, ScalarLateralLaw, the window checked and prepared once per new window
-by control_common.InputReader); tests hold it to the readable numpy forms.
-Each step:
+projection. The step runs every tick, so it uses the scalar forms: the window
+checked and prepared once per new window (controllers.tracking.InputReader),
+the projection, then everything else in controllers.backstepping.step_kernel
+(eq. 7, the lateral law, the limits), which numba compiles from the same
+source when it is installed (COSIM_JIT; step_path chooses); tests hold both
+to the readable numpy forms. Each step:
 
 1. dt from consecutive step times (first step: `period`);
 2. friction estimate: explicit Euler with the previous step's mu_hat_dot, then
@@ -40,10 +42,13 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 from cosim.component import Component, ComponentError, ModelReference, Port, Value
-from controllers.backstepping.lateral import AdaptationSettings, LateralGains, ScalarLateralLaw
-from controllers.tracking import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits,
-                                        InputReader, SteeringLimiter, StepClock,
-                                        empty_window_outputs, finite_outputs, path_errors)
+from controllers.backstepping import step_kernel
+from controllers.backstepping.lateral import (AdaptationSettings, LateralGains, ScalarLateralLaw,
+                                              singular_steer_error)
+from controllers.backstepping.step_path import compiled_step
+from controllers.road.projection import cg_and_preview
+from controllers.tracking import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits, InputReader,
+                                  SteeringLimiter, StepClock, empty_window_outputs, finite_outputs)
 from controllers.vehicle_params import VehicleParams
 
 BACKSTEPPING_OUTPUTS: tuple[Port, ...] = COMMAND_OUTPUTS + (
@@ -131,7 +136,13 @@ class BacksteppingController(Component):
         self.adaptation = AdaptationSettings(law=adaptation, fwy_max=fwy_max, a_excite=a_excite,
                                              v_adapt=v_adapt)
         self.lateral = ScalarLateralLaw(self.params, self.gains, self.adaptation)
-        self._me, self._kxgx = self.params.me, self.kx + self.gx
+        constants = self.lateral.constants + (
+            self.params.m, self.params.me, self.params.Rw, self.kx + self.gx, self.limits.max_torque,
+            self.limits.min_torque, self.limits.max_delta, self.limits.max_delta_rate, self.mu_min,
+            self.mu_max, self.g_mu)
+        compiled = compiled_step()
+        self._step, self._constants = ((compiled.step, compiled.constants(constants)) if compiled is not None
+                                       else (step_kernel.step, constants))
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """One control step at time t (see module docstring)."""
@@ -139,20 +150,21 @@ class BacksteppingController(Component):
         (x, y, psi, vx, vy, r), window = self.reader.read(inputs, t)
         if window is None:
             return empty_window_outputs(self.outputs, self.steering.last) | {"mu_hat": self.mu_hat}
-        mu_hat = self.mu_hat = min(self.mu_max, max(self.mu_min, self.mu_hat + dt * self.mu_hat_dot))
-        (y_l, psi_l, y_c, y_cg, rho, rho_dot, vx_ref, vx_ref_dot,
-         *at_cg) = path_errors(window, x, y, psi, vx, self.gains.ls)
-        # eq. 7 (longitudinal_law), then the nominal model's vx_dot with the applied torque
-        m, me, rw = self.params.m, self._me, self.params.Rw
-        ex = vx - vx_ref
-        torque = self.limits.torque(rw * (-self._kxgx * ex - m * vy * r + me * vx_ref_dot))
-        vx_dot = (torque / rw + m * vy * r) / me
-        command, alpha_vy, alpha_r, z_vy, z_r, mu_hat_dot, v2 = self.lateral.command(
-            y_l, psi_l, vy, r, vx, vx_dot, rho, rho_dot, mu_hat, self.g_mu, *at_cg)
-        delta = self.steering.apply(command, dt)
-        limited = abs(delta - command) > 1e-12
-        self.mu_hat_dot = 0.0 if limited or vx < self.gains.v_min else mu_hat_dot
-        v3 = v2 + ((self.mu_true - mu_hat) ** 2 / (2.0 * self.g_mu) if self.g_mu > 0.0 else 0.0)
-        return finite_outputs(OUTPUT_NAMES, (
-            delta, torque, y_l, psi_l, y_c, y_cg, ex, vx_ref, rho, mu_hat, alpha_vy, alpha_r, z_vy, z_r,
-            0.5 * me * ex * ex, v2, v3), t)
+        at_cg, preview = cg_and_preview(window, x, y, psi, self.gains.ls)
+        try:
+            values = self._step(self._constants, dt, self.mu_hat, self.mu_hat_dot, self.steering.last,
+                                psi, vx, vy, r, at_cg, preview)
+        except step_kernel.SingularSteer as singular:
+            raise singular_steer_error(singular) from None
+        # values: the outputs up to V2, then command, mu_hat_dot, kept, v0, v1, a1x0, a1x1
+        self.steering.last, mu_hat = values[0], values[9]
+        self.mu_hat = mu_hat
+        rate = values[17]
+        if values[18] == 0.0:       # the steer was limited, or vx < v_min: mu_hat is frozen
+            rate = 0.0
+        elif self.lateral.robust:
+            rate = self.lateral.robust_rate(vx, r, values[12], values[13], *values[19:], values[16], mu_hat,
+                                            self.g_mu)
+        self.mu_hat_dot = rate
+        v3 = values[15] + ((self.mu_true - mu_hat) ** 2 / (2.0 * self.g_mu) if self.g_mu > 0.0 else 0.0)
+        return finite_outputs(OUTPUT_NAMES, values[:16] + (v3,), t)

@@ -99,6 +99,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim.component import ComponentError
+from controllers.backstepping import step_kernel
 from controllers.vehicle_params import VehicleParams
 
 LATERAL_LAWS = ("faithful", "feedforward")
@@ -345,8 +346,9 @@ class ScalarLateralLaw:
 
     Same equations as lateral_law and path_reference (the numpy forms, kept as
     the readable reference; a test holds the two together), written out for
-    the 2x2 matrices and 2-vectors, with everything that depends only on the
-    parameters and gains computed once.
+    the 2x2 matrices and 2-vectors in controllers.backstepping.step_kernel,
+    with everything that depends only on the parameters and gains computed
+    once, here, into `constants` (step_kernel's lateral indices).
 
     Args:
         params: the controller's nominal vehicle parameters; gains: gains and law selection;
@@ -358,110 +360,57 @@ class ScalarLateralLaw:
         m, iz, cf, cr, lf, lr = params.m, params.Iz, params.Cf, params.Cr, params.lf, params.lr
         self.gains, self.adaptation = gains, adaptation
         self.robust = adaptation.law == "robust"
-        self.ls, self.v_min = gains.ls, gains.v_min
-        self.k1, self.k2 = gains.ke
-        self.feedforward, self.at_cg = gains.law == "feedforward", gains.ff_target == "cg"
-        # A1(vx) = c / vx, entry by entry
-        self.c00, self.c01 = -2.0 * (cf + cr) / m, 2.0 * (cr * lr - cf * lf) / m
-        self.c10, self.c11 = 2.0 * (cr * lr - cf * lf) / iz, -2.0 * (cf * lf**2 + cr * lr**2) / iz
+        self.ls = gains.ls
+        c00, c01 = -2.0 * (cf + cr) / m, 2.0 * (cr * lr - cf * lf) / m
+        c10, c11 = 2.0 * (cr * lr - cf * lf) / iz, -2.0 * (cf * lf**2 + cr * lr**2) / iz
         self.b0, self.b1 = 2.0 * cf / m, 2.0 * cf * lf / iz
-        self.bb = self.b0 * self.b0 + self.b1 * self.b1
         d0, d1 = 1.0 / m, params.lw / iz
         self.d_norm = math.hypot(d0, d1)
-        self.g00, self.g01 = gains.kz + gains.gz * d0 * d0, gains.gz * d0 * d1
-        self.g11 = gains.kz + gains.gz * d1 * d1
-
-    def _units(self, vx: float, step: float, mu: float) -> tuple[float, ...]:
-        """steady_state_per_curvature's [psiL, vy, r] per unit curvature at vx, vx + step and vx - step.
-
-        The three points share the products of mu (mu * c / v is (mu * c) / v: the same values).
-        """
-        mc00, mc01, mc10, mc11 = mu * self.c00, mu * self.c01, mu * self.c10, mu * self.c11
-        b1, b2, ls = mu * self.b0, mu * self.b1, self.ls
-        out = []
-        for v in (vx, vx + step, vx - step):
-            a00, a01 = mc00 / v, mc01 / v - v           # mu * c00 / v, mu * c01 / v - v
-            a10, a11 = mc10 / v, mc11 / v
-            det = a00 * b2 - a10 * b1
-            if abs(det) < 1e-12 * max(abs(a00 * b2), abs(a10 * b1)):
-                raise ComponentError(f"no steady-state steer at vx = {v} m/s: model matrix is singular")
-            rhs1, rhs2 = -a01 * v, -a11 * v
-            vy = (rhs1 * b2 - rhs2 * b1) / det
-            out += (-(vy + ls * v) / v, vy, v)
-        return tuple(out)
-
-    def reference(self, vx: float, vx_dot: float, rho: float, rho_dot: float,
-                  mu_hat: float, at_cg: tuple[float, float, float, float]) -> tuple[float, ...]:
-        """path_reference as (yr, psir, yr_dot, psir_dot, vyr, rr, vyr_dot, rr_dot); vx already floored.
-
-        at_cg: (rho_cg, rho_cg_dot, turn, bend), see LateralMeasurement.
-        """
-        ls = self.ls
-        if not self.feedforward:
-            kin, kin_dot = vx * rho, vx_dot * rho + vx * rho_dot
-            return 0.0, 0.0, 0.0, 0.0, -ls * kin, kin, -ls * kin_dot, kin_dot
-        step = 1e-4 * vx
-        u0, u1, u2, p0, p1, p2, n0, n1, n2 = self._units(vx, step, mu_hat)
-        two = 2.0 * step
-        if self.at_cg:      # _cg_reference, written out
-            rho_cg, rho_cg_dot, turn, bend = at_cg
-            f = rho_cg * vx_dot
-            vy_r, r_r = u1 * rho_cg, u2 * rho_cg
-            vy_r_dot = u1 * rho_cg_dot + (p1 - n1) / two * f
-            r_r_dot = u2 * rho_cg_dot + (p2 - n2) / two * f
-            beta = vy_r / vx
-            beta_dot = (vy_r_dot - beta * vx_dot) / vx
-            psi_r, psi_r_dot = -beta - turn, -beta_dot - vx * (rho - rho_cg)
-            y_r, y_r_dot = -ls * beta - bend, -ls * beta_dot - vx * (turn - ls * rho_cg)
-            return y_r, psi_r, y_r_dot, psi_r_dot, vy_r, r_r, vy_r_dot, r_r_dot
-        f = rho * vx_dot
-        dot0 = u0 * rho_dot + (p0 - n0) / two * f
-        dot1 = u1 * rho_dot + (p1 - n1) / two * f
-        dot2 = u2 * rho_dot + (p2 - n2) / two * f
-        return 0.0, u0 * rho, 0.0, dot0, u1 * rho, u2 * rho, dot1, dot2
+        g00, g01 = gains.kz + gains.gz * d0 * d0, gains.gz * d0 * d1
+        g11 = gains.kz + gains.gz * d1 * d1
+        flags = (float(gains.law == "feedforward"), float(gains.ff_target == "cg"), float(self.robust))
+        self.constants: tuple[float, ...] = (
+            c00, c01, c10, c11, self.b0, self.b1, self.b0 * self.b0 + self.b1 * self.b1, g00, g01, g11,
+            gains.ls, *gains.ke, gains.v_min, *flags)
+        assert len(self.constants) == step_kernel.LATERAL_SIZE
 
     def command(self, y_l: float, psi_l: float, vy: float, r: float, vx: float, vx_dot: float,
                 rho: float, rho_dot: float, mu_hat: float, g_mu: float, rho_cg: float | None = None,
                 rho_cg_dot: float = 0.0, turn: float = 0.0, bend: float = 0.0) -> tuple[float, ...]:
         """lateral_law as (delta, alpha_vy, alpha_r, z_vy, z_r, mu_hat_dot, V2).
 
-        Args: as LateralMeasurement's fields (vx measured, floored here), with mu_hat
+        Args: as LateralMeasurement's fields (vx measured, floored in the law), with mu_hat
         and g_mu after rho_dot.
         """
-        vx_measured, vx = vx, max(vx, self.v_min)
-        ls, k1, k2 = self.ls, self.k1, self.k2
         if rho_cg is None:
+            ls = self.ls
             rho_cg, rho_cg_dot, turn, bend = rho, rho_dot, ls * rho, 0.5 * ls * ls * rho
-        y_r, psi_r, y_r_dot, psi_r_dot, vy_r, r_r, vy_r_dot, r_r_dot = self.reference(
-            vx, vx_dot, rho, rho_dot, mu_hat, (rho_cg, rho_cg_dot, turn, bend))
-        e0, e1 = y_l - y_r, psi_l - psi_r
-        ed0, ed1 = vx * psi_l + vy + ls * r - y_r_dot, r - vx * rho - psi_r_dot
-        u0, u1 = -k1 * e0 - vx * e1, -k2 * e1                  # g^-1 = [[1, -ls], [0, 1]]
-        alpha0, alpha1 = vy_r + (u0 - ls * u1), r_r + u1
-        u0, u1 = -k1 * ed0 - (vx_dot * e1 + vx * ed1), -k2 * ed1
-        alpha_dot0, alpha_dot1 = vy_r_dot + (u0 - ls * u1), r_r_dot + u1
-        z0, z1 = vy - alpha0, r - alpha1
-        a00, a01, a10, a11 = self.c00 / vx, self.c01 / vx, self.c10 / vx, self.c11 / vx
-        a1x0, a1x1 = a00 * vy + a01 * r, a10 * vy + a11 * r
-        # v = -G z - (mu A1 + A2) x + alpha_dot - g^T e,  A2 x = [-vx r, 0],  g^T = [[1, 0], [ls, 1]]
-        v0 = (-(self.g00 * z0 + self.g01 * z1) - (mu_hat * a1x0 - vx * r) + alpha_dot0 - e0)
-        v1 = (-(self.g01 * z0 + self.g11 * z1) - mu_hat * a1x1 + alpha_dot1 - (ls * e0 + e1))
-        delta = (self.b0 * v0 + self.b1 * v1) / (mu_hat * self.bb)
-        if not self.robust:
-            mu_hat_dot = (g_mu / mu_hat) * (z0 * (v0 + mu_hat * a1x0) + z1 * (v1 + mu_hat * a1x1))
-        else:
-            mu_hat_dot = self._robust_rate(vx_measured, r, z0, z1, v0, v1, a1x0, a1x1, delta, mu_hat, g_mu)
-        v1_lyap = 0.5 * (e0 * e0 + e1 * e1)
-        return delta, alpha0, alpha1, z0, z1, mu_hat_dot, v1_lyap + 0.5 * (z0 * z0 + z1 * z1)
+        try:
+            delta, alpha0, alpha1, z0, z1, mu_hat_dot, v2, v0, v1, a1x0, a1x1 = step_kernel.lateral_command(
+                self.constants, y_l, psi_l, vy, r, vx, vx_dot, rho, rho_dot, mu_hat, g_mu, rho_cg,
+                rho_cg_dot, turn, bend)
+        except step_kernel.SingularSteer as singular:
+            raise singular_steer_error(singular) from None
+        if self.robust:
+            mu_hat_dot = self.robust_rate(vx, r, z0, z1, v0, v1, a1x0, a1x1, delta, mu_hat, g_mu)
+        return delta, alpha0, alpha1, z0, z1, mu_hat_dot, v2
 
-    def _robust_rate(self, vx: float, r: float, z0: float, z1: float, v0: float, v1: float,
-                     a1x0: float, a1x1: float, delta: float, mu_hat: float, g_mu: float) -> float:
-        """The robust law's mu_hat_dot: g_mu z^T (A1 x + B delta) when AdaptationSettings.adapts."""
+    def robust_rate(self, vx: float, r: float, z0: float, z1: float, v0: float, v1: float,
+                    a1x0: float, a1x1: float, delta: float, mu_hat: float, g_mu: float) -> float:
+        """The robust law's mu_hat_dot: g_mu z^T (A1 x + B delta) when AdaptationSettings.adapts.
+
+        vx is the measured speed (not floored); the others as step_kernel.lateral_command gives them.
+        """
         bd0, bd1 = self.b0 * delta, self.b1 * delta
         residual = math.hypot(v0 - mu_hat * bd0, v1 - mu_hat * bd1)
         if not self.adaptation.adapts(vx, r, math.hypot(z0, z1), residual, self.d_norm, self.gains.kz):
             return 0.0
         return g_mu * (z0 * (a1x0 + bd0) + z1 * (a1x1 + bd1))
+
+
+def singular_steer_error(singular: step_kernel.SingularSteer) -> ComponentError:
+    """The ComponentError of a SingularSteer (the feedforward law's model has no steady steer)."""
+    return ComponentError(f"no steady-state steer at vx = {singular.args[0]} m/s: model matrix is singular")
 
 
 def project_mu(mu_hat: float, mu_min: float, mu_max: float) -> float:

@@ -22,18 +22,14 @@ import bisect
 import functools
 import itertools
 import math
-import os
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
+from controllers import jit
 from controllers.road import hermite
 from controllers.trajectory import FIELDS, TrajectoryWindow
 
-JIT_VARIABLE = "COSIM_JIT"   # auto (default): compiled when numba is installed; off; on: numba required
-JIT_MODES = {"auto": "auto", "": "auto", "on": "on", "1": "on", "yes": "on", "true": "on",
-             "off": "off", "0": "off", "no": "off", "false": "off"}
 
 
 class WindowError(ValueError):
@@ -317,43 +313,17 @@ def _bind(kernel, matrix: np.ndarray) -> tuple[functools.partial, functools.part
 def compiled_kernel():
     """The controllers.road.projection_jit module (foot_fields, pack), or None for the interpreted path.
 
-    None when COSIM_JIT is 0/off, when numba is not installed or does not
-    load (COSIM_JIT=on makes either an error; a numba that fails to load
-    warns), or when the compiled code disagrees with the
-    interpreted path in any bit on a built-in set of points (a warning says
-    so). The first call imports numba and loads (or compiles) the code.
+    controllers.jit.load_compiled decides (COSIM_JIT; numba missing or broken;
+    the compiled code checked bit for bit against the interpreted path on a
+    built-in set of points). The first call imports numba and loads (or
+    compiles) the code.
     """
-    value = os.environ.get(JIT_VARIABLE, "auto")
-    mode = JIT_MODES.get(value.strip().lower())
-    if mode is None:
-        raise ValueError(f"{JIT_VARIABLE}={value!r}: expected auto, on or off")
-    if mode == "off":
-        return None
-    try:
-        from controllers.road import projection_jit
-    except ImportError as error:     # no numba
-        if mode == "on":
-            raise ImportError(f"{JIT_VARIABLE}={value}: the compiled projection needs numba "
-                              f"(pip install 'cosim[jit]'): {error}") from None
-        return None
-    except Exception as error:       # a numba that is installed but does not load or compile
-        if mode == "on":
-            raise RuntimeError(f"{JIT_VARIABLE}={value}: numba does not load: {error!r}") from None
-        warnings.warn(f"the compiled projection is not used: numba does not load: {error!r}",
-                      RuntimeWarning, stacklevel=2)
-        return None
-    kernel = projection_jit
-    disagreement = _disagreement(kernel)
-    if disagreement:      # numba's cache can predate an edit of hermite.py: compile afresh once
-        kernel.recompile()
-        disagreement = _disagreement(kernel)
-    if disagreement:
-        if mode == "on":
-            raise RuntimeError(f"{JIT_VARIABLE}={value}: the compiled projection disagrees with the "
-                               f"interpreted one: {disagreement}")
-        warnings.warn(f"the compiled projection is not used: {disagreement}", RuntimeWarning, stacklevel=2)
-        return None
-    return kernel
+    return jit.load_compiled("the compiled projection", _import_kernel, _disagreement)
+
+
+def _import_kernel():
+    from controllers.road import projection_jit
+    return projection_jit
 
 
 def _disagreement(kernel) -> str:

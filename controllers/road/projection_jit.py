@@ -18,24 +18,15 @@ when its start-up check finds a stale cache).
 from __future__ import annotations
 
 import math
-import warnings
 
-import numba
+import numba  # noqa: F401  (ImportError without numba: the interpreted projection)
 import numpy as np
 
+from controllers import jit
 from controllers.road import hermite
 
 
-def _compile(function):
-    """numba.njit with the on-disk cache, or without it when no cache folder is writable."""
-    try:
-        return numba.njit(cache=True, nogil=True)(function)
-    except RuntimeError as error:     # "cannot cache function ...: no locator available"
-        warnings.warn(f"the compiled projection is compiled in each process: {error} "
-                      f"(set NUMBA_CACHE_DIR to a writable folder to keep it)", RuntimeWarning, stacklevel=2)
-        return numba.njit(nogil=True)(function)
-
-
+_compile = jit.njit_cached
 _segment = _compile(hermite.segment)
 _refine = _compile(hermite.refine)
 _evaluate = _compile(hermite.evaluate)

@@ -99,7 +99,7 @@ def test_an_output_reader_finds_nothing_in_a_changed_format():
 
 def closed_loop_section(mode: str, controller: float, untimed: float, rtf: int) -> str:
     """One projection's table as bench_closed_loop prints it."""
-    return (f"-- projection: {mode}\npart                                   us/tick   share\n"
+    return (f"-- paths: {mode}\npart                                   us/tick   share\n"
             f"FMU step (vehicle)                        5.45     12%\n"
             f"controller (every tick)                  {controller:5.2f}     59%\n"
             f"planner (amortized, 1 in 10 ticks)        7.02     16%\n"
@@ -114,7 +114,7 @@ CLOSED_LOOP_OUTPUT = ("backstepping + planner (lane_keeping) + Vehicle8DOF (plat
 
 def test_the_closed_loop_reader_gives_one_row_per_projection():
     interpreted, compiled = run_all_rows.closed_loop(CLOSED_LOOP_OUTPUT)
-    assert interpreted["measure"].endswith("interpreted projection") and interpreted["met"] is False
+    assert interpreted["measure"].endswith("interpreted projection and step") and interpreted["met"] is False
     assert interpreted["figure"] == ("43.0 µs/tick = 232x real time "
                                      "(controller 25.8, planner 7.0, master 5.8, FMU 5.5 µs)")
-    assert compiled["measure"].endswith("compiled projection (numba)") and compiled["met"] is True
+    assert compiled["measure"].endswith("compiled projection and step (numba)") and compiled["met"] is True

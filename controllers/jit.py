@@ -1,0 +1,111 @@
+"""COSIM_JIT: whether the controllers' per-tick arithmetic runs compiled by numba, and the gate it passes.
+
+Two parts of the controllers' tick have a compiled twin made by numba from
+their own Python source (the `jit` extra): the window projection
+(controllers.road.projection_jit) and the backstepping step
+(controllers.backstepping.step_jit). The same source runs interpreted when
+numba is absent or COSIM_JIT says off, and both paths give the same bits.
+
+COSIM_JIT = auto (default): compiled when numba is installed; off: never;
+on: compiled, or an error. `load_compiled` is the gate every compiled part
+goes through at its first use in a process: it imports it (which imports
+numba), checks it bit for bit against the interpreted path on built-in
+cases, compiles it afresh once if they disagree (numba's disk cache does not
+see an edit of a module whose functions were inlined), and otherwise falls
+back to the interpreted path with a warning (an error with `on`).
+"""
+
+from __future__ import annotations
+
+import os
+import types
+import warnings
+from collections.abc import Callable, Iterable
+from typing import Any
+
+JIT_VARIABLE = "COSIM_JIT"
+JIT_MODES = {"auto": "auto", "": "auto", "on": "on", "1": "on", "yes": "on", "true": "on",
+             "off": "off", "0": "off", "no": "off", "false": "off"}
+
+
+def jit_mode() -> tuple[str, str]:
+    """(mode, the variable's text): mode is auto, on or off; ValueError naming the variable and value."""
+    value = os.environ.get(JIT_VARIABLE, "auto")
+    mode = JIT_MODES.get(value.strip().lower())
+    if mode is None:
+        raise ValueError(f"{JIT_VARIABLE}={value!r}: expected auto, on or off")
+    return mode, value
+
+
+def load_compiled(what: str, load: Callable[[], Any], disagreement: Callable[[Any], str]) -> Any | None:
+    """The compiled part `load()` returns, or None for the interpreted path (see the module docstring).
+
+    Args:
+        what: the part, for messages ("the compiled projection").
+        load: imports and returns the compiled module (ImportError when numba is missing); the
+            module has `recompile()`.
+        disagreement: '' when the module gives the interpreted path's bits on built-in cases,
+            else where it does not.
+    """
+    mode, value = jit_mode()
+    if mode == "off":
+        return None
+    try:
+        kernel = load()
+    except ImportError as error:     # no numba
+        if mode == "on":
+            raise ImportError(f"{JIT_VARIABLE}={value}: {what} needs numba "
+                              f"(pip install 'cosim[jit]'): {error}") from None
+        return None
+    except Exception as error:       # a numba that is installed but does not load or compile
+        if mode == "on":
+            raise RuntimeError(f"{JIT_VARIABLE}={value}: numba does not load: {error!r}") from None
+        warnings.warn(f"{what} is not used: numba does not load: {error!r}", RuntimeWarning, stacklevel=3)
+        return None
+    found = disagreement(kernel)
+    if found:      # numba's cache can predate an edit of an inlined module: compile afresh once
+        kernel.recompile()
+        found = disagreement(kernel)
+    if found:
+        if mode == "on":
+            raise RuntimeError(f"{JIT_VARIABLE}={value}: {what} disagrees with the interpreted one: {found}")
+        warnings.warn(f"{what} is not used: {found}", RuntimeWarning, stacklevel=3)
+        return None
+    return kernel
+
+
+def njit_cached(function: Callable) -> Any:
+    """numba.njit with the on-disk cache, or without it when no cache folder is writable (a warning)."""
+    import numba
+
+    try:
+        return numba.njit(cache=True, nogil=True)(function)
+    except RuntimeError as error:     # "cannot cache function ...: no locator available"
+        warnings.warn(f"{function.__name__} is compiled in each process: {error} "
+                      f"(set NUMBA_CACHE_DIR to a writable folder to keep it)", RuntimeWarning, stacklevel=2)
+        return numba.njit(nogil=True)(function)
+
+
+def compile_together(functions: Iterable[Callable]) -> dict[str, Any]:
+    """njit_cached twins of plain functions that call one another's twins, not the originals.
+
+    Each twin is the function's own code over a copy of its module's globals
+    in which every global bound to one of `functions` (under any name) is
+    bound to that function's twin instead, so the modules themselves (the
+    interpreted path) are left as they are. numba reads those globals when it
+    first compiles a twin; module-level numbers are taken as constants.
+    Returns the twins by function name.
+    """
+    functions = list(functions)
+    namespaces: dict[str, dict[str, Any]] = {}
+    twins: dict[int, Any] = {}
+    for original in functions:
+        namespace = namespaces.setdefault(original.__module__, dict(original.__globals__))
+        rebound = types.FunctionType(original.__code__, namespace, original.__name__, original.__defaults__)
+        rebound.__qualname__, rebound.__module__ = original.__qualname__, original.__module__
+        twins[id(original)] = njit_cached(rebound)
+    for namespace in namespaces.values():
+        for name, value in namespace.items():
+            if id(value) in twins:      # the originals are alive in `functions`: an id is theirs
+                namespace[name] = twins[id(value)]
+    return {original.__name__: twins[id(original)] for original in functions}
