@@ -121,6 +121,10 @@ def run_rows(result: Any) -> list[tuple[str, str]]:
     tick0 = getattr(result, "time_to_tick0_s", None)
     if tick0 is not None:
         rows.append(("time to tick 0", f"{tick0:.3f} s"))
+    loop = getattr(result, "loop_time_s", None)
+    if loop:       # wall time and real-time factor count tick 0 (start-up); these do not
+        rows.append(("loop time (ticks 1..N)", f"{loop:.4g} s"))
+        rows.append(("loop real-time factor", f"{result.sim_time_s / loop:.4g}"))
     for key, value in (result.realtime or {}).items():
         rows.append((f"realtime.{key}", f"{value:.4g}" if isinstance(value, float) else str(value)))
     return rows

@@ -160,6 +160,7 @@ def finish_manifest(manifest: dict[str, Any], result: Any,
         "sim_time_s": result.sim_time_s,
         "wall_time_s": result.wall_time_s,
         "real_time_factor": result.real_time_factor,
+        "loop_time_s": getattr(result, "loop_time_s", None),     # ticks 1..N, without start-up
         "realtime": result.realtime,
         "time_to_tick0_s": result.time_to_tick0_s,
         "startup": result.startup,

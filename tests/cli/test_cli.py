@@ -68,6 +68,7 @@ def test_run_with_set_override_writes_the_run_folder(good, tmp_path, capsys):
     assert manifest["status"] == "ok" and manifest["ticks"] == 10
     assert manifest["sim_time_s"] == 0.1 and manifest["transport"] == "inproc"
     assert manifest["wall_time_s"] > 0 and manifest["real_time_factor"] > 0
+    assert 0 < manifest["loop_time_s"] <= manifest["wall_time_s"]     # ticks 1..N, without tick 0
     printed = capsys.readouterr().out
     assert "real-time factor" in printed
     # the run is analysed afterwards: a figure, or a note saying why not
