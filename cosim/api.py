@@ -173,7 +173,8 @@ def validate(scenario: ScenarioSource, *, set: Overrides = None) -> dict[str, An
 
 def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
         transport: str = "inproc", out: str | Path | None = None,
-        progress: bool = False) -> Run:
+        progress: bool = False, place: Sequence[str] = (),
+        deploy: str | Path | None = None) -> Run:
     """Run a scenario to its run folder, compute its metrics, and return its results.
 
     Args:
@@ -182,6 +183,10 @@ def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
         transport: "inproc" (default here: one process) or "zenoh" (a process per component).
         out: the run folder; default runs/<name>-<UTC time> under the working directory.
         progress: draw a progress bar on stderr.
+        place: "COMPONENT=WORKER" items, as `cosim run --place` (they override the
+            scenario's `host:`; WORKER `inproc` hosts a Python component in this process);
+            they need transport "zenoh".
+        deploy: a deployment settings YAML (workers' endpoints, TLS), as `cosim run --deploy`.
     Returns:
         The Run. A component failing mid-run does not raise: `status` is then "failed",
         `error` says why, and everything up to the last complete tick is in the folder.
@@ -194,9 +199,16 @@ def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
     from cosim.results.folders import stamped_folder
 
     check_run_options(transport, None)
+    if isinstance(place, str):      # one item given bare, not a list of one
+        place = [place]
+    settings = None
+    if deploy is not None:
+        from cosim.distributed.deploy import load_deploy, merge_endpoints
+        settings = merge_endpoints(load_deploy(deploy))
     loaded = load_scenario(scenario, set=set)
     folder = Path(out) if out is not None else stamped_folder("runs", loaded.name)
-    result = run_scenario(loaded, folder, transport=transport, progress=progress)
+    result = run_scenario(loaded, folder, transport=transport, progress=progress, place=list(place),
+                          deploy=settings)
     if result.ticks > 0:
         analyse_run_folder(result, figures=False)
     return Run(result.out_dir)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -118,3 +119,15 @@ def test_a_failing_component_gives_a_failed_run_not_an_exception(tmp_path):
     assert run.status == "failed"
     assert "mixer cannot divide" in run.error and "'mix'" in run.error
     assert len(run.signals) > 0 and run.signals.index[-1] < 0.2
+
+
+def test_run_places_components_as_the_cli_does(tmp_path):
+    placed = cosim.run("lane_change", set=SHORT, transport="zenoh", out=tmp_path / "placed",
+                       place=["planner=inproc"])
+    assert placed.status == "ok"
+    pids = json.loads((tmp_path / "placed" / "manifest.json").read_text())["pids"]
+    assert pids["planner"] == os.getpid() != pids["controller"]       # the planner ran in this process
+    plain = cosim.run("lane_change", set=SHORT, transport="inproc", out=tmp_path / "plain")
+    assert (tmp_path / "placed" / "signals.csv").read_bytes() == (tmp_path / "plain" / "signals.csv").read_bytes()
+    with pytest.raises(cosim.UserError, match=r"need --transport zenoh"):
+        cosim.run("lane_change", set=SHORT, out=tmp_path / "refused", place=["controller=w1"])
