@@ -127,7 +127,7 @@ def test_run_places_components_as_the_cli_does(tmp_path):
     assert placed.status == "ok"
     pids = json.loads((tmp_path / "placed" / "manifest.json").read_text())["pids"]
     assert pids["planner"] == os.getpid() != pids["controller"]       # the planner ran in this process
-    plain = cosim.run("lane_change", set=SHORT, transport="inproc", out=tmp_path / "plain")
+    assert cosim.run("lane_change", set=SHORT, transport="inproc", out=tmp_path / "plain").status == "ok"
     assert (tmp_path / "placed" / "signals.csv").read_bytes() == (tmp_path / "plain" / "signals.csv").read_bytes()
     with pytest.raises(cosim.UserError, match=r"need --transport zenoh"):
         cosim.run("lane_change", set=SHORT, out=tmp_path / "refused", place=["controller=w1"])
