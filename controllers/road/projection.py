@@ -96,6 +96,9 @@ def validate_window(window: TrajectoryWindow, prefix: str = "ref") -> None:
                           f"{prefix}_s[{i + 1}] = {window.s[i + 1]}")
 
 
+_FIELD_NAMES = frozenset(name for name, _, _ in FIELDS)   # x, y, psi, kappa, s, v, a
+
+
 class PreparedWindow:
     """A window with its chords precomputed and its fields as Python lists (fast scalar access).
 
@@ -124,13 +127,21 @@ class PreparedWindow:
             [getattr(window, name) for name, _, _ in FIELDS], dtype=np.float64)
         kernel = compiled_kernel() if compiled else None
         self.compiled = self.compiled_pair = None
-        if kernel is not None:
-            self.compiled, self.compiled_pair = _bind(kernel, matrix)
-        self.x, self.y, self.psi, self.kappa, self.s, self.v, self.a = matrix.tolist()
-        self.chords = len(self.s) - 1
+        self.chords = matrix.shape[1] - 1
         self._segments: list[tuple | None] = [None] * self.chords
-        if self.compiled is None:
-            self._prepare_search(matrix)
+        if kernel is not None:      # the field lists only when asked for (__getattr__): not per tick
+            self.compiled, self.compiled_pair = _bind(kernel, matrix)
+            self._matrix = matrix
+            return
+        self.x, self.y, self.psi, self.kappa, self.s, self.v, self.a = matrix.tolist()
+        self._prepare_search(matrix)
+
+    def __getattr__(self, name: str):
+        """A field list on the compiled path, made on first use (point_at, segment read them)."""
+        if name in _FIELD_NAMES and "_matrix" in self.__dict__:
+            self.x, self.y, self.psi, self.kappa, self.s, self.v, self.a = self._matrix.tolist()
+            return self.__dict__[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def _prepare_search(self, matrix: np.ndarray) -> None:
         """The interpreted path's chords, reach and tracking state (the compiled path scans every chord)."""

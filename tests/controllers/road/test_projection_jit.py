@@ -19,7 +19,7 @@ import pytest
 
 from controllers.backstepping.component import BacksteppingController
 from controllers.linear_plant import LinearPlant
-from controllers.road.projection import PreparedWindow, cg_and_preview, foot
+from controllers.road.projection import PreparedWindow, cg_and_preview, foot, point_at
 from controllers.vehicle_params import VehicleParams
 from tests.controllers.backstepping.test_fast_paths import random_windows
 from tests.helpers.closed_loop import CirclePath, make_window
@@ -175,3 +175,15 @@ def test_a_numba_that_does_not_load_warns_in_auto_and_is_an_error_in_on(jit_mode
         assert jit_mode("auto") is None
     with pytest.raises(RuntimeError, match=r"COSIM_JIT=on: numba does not load: RuntimeError"):
         jit_mode("on")
+
+
+def test_a_compiled_window_makes_its_field_lists_only_when_asked_and_they_are_the_same(jit_mode):
+    jit_mode("on")
+    for window in random_windows(np.random.default_rng(9)):
+        compiled, interpreted = PreparedWindow(window), PreparedWindow(window, compiled=False)
+        assert compiled.compiled is not None and "s" not in vars(compiled)     # not made per window
+        for s in np.linspace(window.s[0] - 3.0, window.s[-1] + 3.0, 40).tolist():
+            assert same(point_at(compiled, s), point_at(interpreted, s)), s
+        assert same((compiled.x, compiled.s, compiled.a), (interpreted.x, interpreted.s, interpreted.a))
+        with pytest.raises(AttributeError, match="no attribute 'nope'"):
+            compiled.nope  # noqa: B018
