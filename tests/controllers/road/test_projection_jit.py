@@ -22,7 +22,7 @@ from controllers.linear_plant import LinearPlant
 from controllers.road.projection import PreparedWindow, cg_and_preview, foot, point_at
 from controllers.vehicle_params import VehicleParams
 from tests.controllers.backstepping.test_fast_paths import random_windows
-from tests.helpers.closed_loop import CirclePath, make_window
+from tests.helpers.closed_loop import CirclePath, make_window, run_closed_loop
 
 numba = pytest.importorskip("numba")
 
@@ -76,18 +76,11 @@ def test_compiled_foot_equals_the_interpreted_one_bit_for_bit(jit_mode):
 
 
 def test_backstepping_closed_loop_is_the_same_on_both_paths(jit_mode):
-    def run() -> list[dict]:
+    def run() -> dict[str, bytes]:
         controller = BacksteppingController(lateral_law="feedforward", adaptive=True, mu0=0.6)
         plant = LinearPlant(VehicleParams(), substeps=2, vx0=9.0, y0=0.4, mu=0.9)
-        path, outputs = CirclePath(40.0), []
-        for k in range(1500):
-            state = plant.outputs()
-            if k % 10 == 0:
-                signals = make_window(path, path.sigma_of(state["x"], state["y"]) - 5.0, v=10.0).to_signals("ref")
-            out = controller.step(0.01 * k, state | signals)
-            outputs.append(out)
-            plant.step(0.01, out["delta"], out["torque"])
-        return outputs
+        record = run_closed_loop(controller, plant, CirclePath(40.0), 15.0)
+        return {name: values.tobytes() for name, values in record.items()}
 
     assert jit_mode("off") is None
     interpreted = run()
