@@ -55,8 +55,8 @@ COMMAND_OUTPUTS: tuple[Port, ...] = (
 
 PLANT_NAMES: tuple[str, ...] = tuple(port.name for port in PLANT_INPUTS)
 WINDOW_NAMES: tuple[str, ...] = tuple(f"ref_{name}" for name, _, _ in FIELDS)
-_pick_plant = operator.itemgetter(*PLANT_NAMES)
-_pick_window = operator.itemgetter(*WINDOW_NAMES)
+INPUT_NAMES: tuple[str, ...] = tuple(port.name for port in CONTROLLER_INPUTS)    # plant, then ref_*
+_pick_inputs = operator.itemgetter(*INPUT_NAMES)
 _all = np.logical_and.reduce      # ndarray.all without its Python wrapper (once per window)
 _PI, _TWO_PI = math.pi, 2.0 * math.pi
 
@@ -85,12 +85,23 @@ class InputReader:
             inputs: the step's input mapping (PLANT_INPUTS and the ref_* window).
             t: the step's time, for messages.
         """
-        plant = tuple(map(float, _pick_plant(inputs)))
+        return self.read_values(_pick_inputs(inputs), t, inputs)
+
+    def read_values(self, values: tuple, t: float,
+                    inputs: Mapping[str, Value] | None = None) -> tuple[tuple[float, ...], PreparedWindow | None]:
+        """`read` on the inputs as a tuple in CONTROLLER_INPUTS order (a component's `step_values`).
+
+        Args:
+            values: the plant's six values, then the seven ref_* arrays;
+            t: the step's time, for messages; inputs: the same as a mapping, if the caller has it
+                (built from `values` only when a bad window needs it for its message).
+        """
+        plant = tuple(map(float, values[:6]))
         if not math.isfinite(sum(plant)):
             for name, value in zip(PLANT_NAMES, plant):
                 if not math.isfinite(value):
                     raise ComponentError(f"input {name!r} is not finite at t = {t}: {value}")
-        arrays = _pick_window(inputs)
+        arrays = values[6:]
         if self._frozen and all(map(operator.is_, arrays, self._arrays)):
             return plant, self._prepared
         try:
@@ -98,7 +109,7 @@ class InputReader:
         except AttributeError:       # not numpy arrays: the full path converts them
             content = None
         if content is None or content != self._content or not self._arrays:
-            content = self._prepare(arrays, inputs, t)
+            content = self._prepare(arrays, dict(zip(WINDOW_NAMES, arrays)) if inputs is None else inputs, t)
         self._arrays, self._content = arrays, content
         self._frozen = all(map(is_frozen, arrays))
         return plant, self._prepared
@@ -279,6 +290,13 @@ def finite_outputs(names: tuple[str, ...], values: tuple[float, ...], t: float) 
     return dict(zip(names, values))
 
 
+def finite_values(names: tuple[str, ...], values: tuple[float, ...], t: float) -> tuple[float, ...]:
+    """`values`, refusing non-finite ones as finite_outputs does (a component's `step_values`)."""
+    if not math.isfinite(sum(values)):
+        finite_outputs(names, values, t)
+    return values
+
+
 def empty_window_outputs(names: tuple[Port, ...], delta: float) -> dict[str, float]:
     """Outputs while no trajectory has arrived: hold the steer, zero torque, zero internals."""
     values = {port.name: 0.0 for port in names}
@@ -286,6 +304,6 @@ def empty_window_outputs(names: tuple[Port, ...], delta: float) -> dict[str, flo
     return values
 
 
-__all__ = ["ActuatorLimits", "COMMAND_OUTPUTS", "CONTROLLER_INPUTS", "InputReader", "PLANT_INPUTS",
-           "PLANT_NAMES", "SpeedPI", "SteeringLimiter", "StepClock", "WINDOW_NAMES",
-           "empty_window_outputs", "errors_at_feet", "finite_outputs", "path_errors"]
+__all__ = ["ActuatorLimits", "COMMAND_OUTPUTS", "CONTROLLER_INPUTS", "INPUT_NAMES", "InputReader",
+           "PLANT_INPUTS", "PLANT_NAMES", "SpeedPI", "SteeringLimiter", "StepClock", "WINDOW_NAMES",
+           "empty_window_outputs", "errors_at_feet", "finite_outputs", "finite_values", "path_errors"]

@@ -39,6 +39,7 @@ V3 uses `mu_true`, a diagnostic parameter the control law never reads.
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Mapping, Sequence
 
 from cosim.component import Component, ComponentError, ModelReference, Port, Value
@@ -47,8 +48,8 @@ from controllers.backstepping.lateral import (AdaptationSettings, LateralGains, 
                                               singular_steer_error)
 from controllers.backstepping.step_path import compiled_step
 from controllers.road.projection import cg_and_preview
-from controllers.tracking import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, ActuatorLimits, InputReader,
-                                  SteeringLimiter, StepClock, empty_window_outputs, finite_outputs)
+from controllers.tracking import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, INPUT_NAMES, ActuatorLimits, InputReader,
+                                  SteeringLimiter, StepClock, empty_window_outputs, finite_values)
 from controllers.vehicle_params import VehicleParams
 
 BACKSTEPPING_OUTPUTS: tuple[Port, ...] = COMMAND_OUTPUTS + (
@@ -63,6 +64,7 @@ BACKSTEPPING_OUTPUTS: tuple[Port, ...] = COMMAND_OUTPUTS + (
     Port("V3", unit="1", description="V2 + (mu_true - mu_hat)^2 / (2 g_mu) (diagnostic)"),
 )
 OUTPUT_NAMES: tuple[str, ...] = tuple(port.name for port in BACKSTEPPING_OUTPUTS)
+_pick_inputs = operator.itemgetter(*INPUT_NAMES)
 
 
 def _gain_pair(name: str, value: float | Sequence[float]) -> tuple[float, float]:
@@ -145,11 +147,15 @@ class BacksteppingController(Component):
                                        else (step_kernel.step, constants))
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
-        """One control step at time t (see module docstring)."""
+        """One control step at time t (see module docstring): step_values on the mapping."""
+        return dict(zip(OUTPUT_NAMES, self.step_values(t, _pick_inputs(inputs))))
+
+    def step_values(self, t: float, values: tuple) -> tuple[float, ...]:
+        """`step` on the inputs in CONTROLLER_INPUTS order; the outputs in OUTPUT_NAMES order."""
         dt = self.clock.advance(t)
-        (x, y, psi, vx, vy, r), window = self.reader.read(inputs, t)
+        (x, y, psi, vx, vy, r), window = self.reader.read_values(values, t)
         if window is None:
-            return empty_window_outputs(self.outputs, self.steering.last) | {"mu_hat": self.mu_hat}
+            return self._empty_window
         at_cg, preview = cg_and_preview(window, x, y, psi, self.gains.ls)
         try:
             values = self._step(self._constants, dt, self.mu_hat, self.mu_hat_dot, self.steering.last,
@@ -167,4 +173,10 @@ class BacksteppingController(Component):
                                             self.g_mu)
         self.mu_hat_dot = rate
         v3 = values[15] + ((self.mu_true - mu_hat) ** 2 / (2.0 * self.g_mu) if self.g_mu > 0.0 else 0.0)
-        return finite_outputs(OUTPUT_NAMES, values[:16] + (v3,), t)
+        return finite_values(OUTPUT_NAMES, values[:16] + (v3,), t)
+
+    @property
+    def _empty_window(self) -> tuple[float, ...]:
+        """The outputs while no trajectory has arrived (empty_window_outputs, with mu_hat held)."""
+        held = empty_window_outputs(self.outputs, self.steering.last) | {"mu_hat": self.mu_hat}
+        return tuple(held[name] for name in OUTPUT_NAMES)
