@@ -9,7 +9,9 @@ generated once per component, as namedtuple and dataclasses generate their
 methods: a dict display whose keys are the port names (as constants) and whose
 values are subscripts of the store, and a list display of `float(outputs[name])`.
 They do exactly what the generic code does, in the same order (scalar inputs in
-slot order, then the array inputs), with a few bytecodes per port.
+slot order, then the array inputs), with a few bytecodes per port. For a host
+on the master's values lane (`cosim.engine.hosting`) the inputs are a tuple
+display instead, in the host's own port order (`values_picker`).
 
 Array inputs are read from `FrozenArrays`, the read-only copies of the array
 slots handed to readers: made when first read after their owner writes (a
@@ -81,6 +83,18 @@ def input_builder(scalars: Sequence[tuple[str, int]],
     items = [f"{name!r}: values[{int(slot)}]" for name, slot in scalars]
     items += [f"{name!r}: frozen[{int(offset)}]" for name, offset in arrays]
     return _compile("build_inputs", "values, frozen", "{" + ", ".join(items) + "}")
+
+
+def values_picker(sources: Sequence[tuple[bool, int]]) -> Callable[[list[float], FrozenArrays],
+                                                                 tuple]:
+    """A function of (values, frozen) returning a component's inputs as a tuple (the values lane).
+
+    Args:
+        sources: per input, in the order the host wants them: (True, offset in
+            `arrays`) for an array input, (False, slot in `values`) for a scalar.
+    """
+    items = [f"frozen[{int(at)}]" if is_array else f"values[{int(at)}]" for is_array, at in sources]
+    return _compile("pick_values", "values, frozen", "(" + "".join(f"{item}, " for item in items) + ")")
 
 
 def output_reader(names: Sequence[str]) -> Callable[[Any], list[float]]:
