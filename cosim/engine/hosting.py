@@ -32,7 +32,9 @@ class HostedComponent(Protocol):
     `value_names` names every input and every output in declared order (None:
     no lane); `trace=True` keeps the mapping. The FMU host offers it for
     Float64 scalar ports, the in-process host for a Python component that
-    defines `step_values` (`cosim.component`).
+    defines `step_values` (`cosim.component`). The master tests the result's
+    length and type (one sum), unless the host sets `values_exact` = True:
+    it always returns a list of as many Python floats as outputs (the FMU host).
 
     Optional too: `use_outputs(names)`, which passes on to a Python component
     the outputs the run reads (`cosim.component.Component.use_outputs`); the

@@ -67,6 +67,7 @@ class _Plan:
     slots: ComponentSlots
     out_start: int
     out_stop: int
+    frozen: FrozenArrays  # the master's read-only array copies, which the lane's mover reads
     index: int = 0  # position in step order, for the breadcrumb
 
     def __post_init__(self) -> None:
@@ -79,9 +80,11 @@ class _Plan:
         self.read_outputs = output_reader(self.slots.out_scalar_names)
         self.has_array_outputs = bool(self.slots.out_arrays)
         self.transforms = self.slots.transforms  # empty unless an input edge has scale/offset
-        # the values lane, when the host offers it for these ports: (values, frozen) -> the inputs tuple
-        self.step_values, self.pick_values = _values_lane(self.hosted, self.slots) or (None, None)
+        # the values lane, when the host offers it for these ports: values -> the inputs tuple
+        self.step_values, self.pick_values = _values_lane(self.hosted, self.slots, self.frozen) or (None, None)
         self.out_count = self.out_stop - self.out_start
+        # a host that vouches for its lane's results (a list of as many Python floats as outputs)
+        self.lane_exact = bool(getattr(self.hosted, "values_exact", False))
         self.out_block = _array_block(self.slots.out_arrays)
 
 
@@ -127,11 +130,11 @@ class Master:
         self.ticks_done = -1  # last completed tick; -1 before initialization
         self.crumb = crumb if crumb is not None else memoryview(bytearray(8)).cast("q")
         self.stop_request: StopRequested | None = None  # a component asked to end the run
-        self._plans = [self._plan(i, name) for i, name in enumerate(self.order)]
         self._frozen = FrozenArrays(
             self.arrays,
             {off: size for slots in self.layout.slots.values() for _, off, size in slots.in_arrays},
-            [span for plan in self._plans for span in plan.out_block])
+            [span for slots in self.layout.slots.values() for span in _array_block(slots.out_arrays)])
+        self._plans = [self._plan(i, name) for i, name in enumerate(self.order)]
         self._scalar_delays = self.layout.scalar_delays
         self._array_delays = self.layout.array_delays
         self._delayed_transforms = self.layout.delayed_transforms
@@ -147,7 +150,8 @@ class Master:
             raise ValueError(f"component {name!r}: period_ticks must be >= 1, got {period}")
         slots = self.layout.slots[name]
         start = slots.out_scalar_start
-        return _Plan(name, comp, period, slots, start, start + len(slots.out_scalar_names), index)
+        return _Plan(name, comp, period, slots, start, start + len(slots.out_scalar_names),
+                     self._frozen, index)
 
     def value(self, component: str, signal: str) -> Any:
         """Current value of an output signal (float, or a copy of the array)."""
@@ -236,16 +240,19 @@ class Master:
     def _step_on_values(self, plan: _Plan, k: int, t: float, values: list[float]) -> None:
         """One step through the host's values lane: a tuple in, scalar outputs out, no mapping."""
         try:
-            new = plan.step_values(k, t, plan.pick_values(values, self._frozen))
+            new = plan.step_values(k, t, plan.pick_values(values))
         except StopRequested as request:  # the tick completes; `run` ends after it
             self.stop_request = request
             self._scatter(plan, request.outputs, k, t)
             return
-        try:  # one sum tests them all: floats (a numpy scalar makes it another type), finite
-            fine = (len(new) == plan.out_count and type(total := sum(new, 0.0)) is float
-                    and (_isfinite(total) or all(map(_isfinite, new))))
-        except Exception:  # not a sequence, or not numbers
-            fine = False
+        if plan.lane_exact:  # floats, as many as outputs: only finiteness to test
+            fine = _isfinite(sum(new)) or all(map(_isfinite, new))
+        else:
+            try:  # one sum tests them all: floats (a numpy scalar makes it another type), finite
+                fine = (len(new) == plan.out_count and type(total := sum(new, 0.0)) is float
+                        and (_isfinite(total) or all(map(_isfinite, new))))
+            except Exception:  # not a sequence, or not numbers
+                fine = False
         if not fine:
             new = _lane_outputs(plan, new, k, t)
         values[plan.out_start:plan.out_stop] = new
@@ -354,7 +361,8 @@ def _due_table(plans: Sequence[_Plan], limit: int = 4096) -> list[list[_Plan]] |
     return [[p for p in plans if r % p.period == 0] for r in range(cycle)]
 
 
-def _values_lane(hosted: Any, slots: ComponentSlots) -> tuple[Callable[..., Any], Callable] | None:
+def _values_lane(hosted: Any, slots: ComponentSlots,
+                 frozen: FrozenArrays) -> tuple[Callable[..., Any], Callable] | None:
     """(the host's `step_values`, the mover of its inputs tuple) when the host offers the lane for
     exactly this component's ports (every input in declared order; scalar outputs only, in slot
     order), else None."""
@@ -367,7 +375,7 @@ def _values_lane(hosted: Any, slots: ComponentSlots) -> tuple[Callable[..., Any]
         return None
     sources = {name: (False, slot) for name, slot in zip(slots.in_scalar_names, slots.in_scalar_index)}
     sources.update((name, (True, offset)) for name, offset, _ in slots.in_arrays)
-    return lane, values_picker([sources[name] for name in declared])
+    return lane, values_picker([sources[name] for name in declared], frozen)
 
 
 def _lane_outputs(plan: _Plan, new: Any, k: int, t: float) -> list[float]:

@@ -326,3 +326,18 @@ def test_value_names_that_do_not_match_the_ports_fall_back_to_the_mapping_path(v
 def test_a_component_with_an_array_output_is_not_offered_the_lane():
     host = _hosted("WithArrayOutput", module=__name__)
     assert host.value_names is None
+
+
+def test_a_host_that_vouches_for_its_results_is_only_tested_for_finiteness():
+    class Vouching(Lagged):
+        values_exact = True
+
+        def step_values(self, tick, t, inputs):
+            return [np.float64(v) for v in super().step_values(tick, t, inputs)]
+
+    master, _, _ = _run(Vouching(), trace=False, ticks=3)
+    assert type(master.values[0]) is np.float64  # taken as given: the host's promise
+    master, _, _ = _run(type("Plain", (Vouching,), {"values_exact": False})(), trace=False, ticks=3)
+    assert type(master.values[0]) is float
+    with pytest.raises(ComponentFailure, match="output 'z' is non-finite: nan"):
+        _run(Vouching(bad=math.nan, bad_at=2), trace=False, ticks=3)
