@@ -9,7 +9,14 @@ with `InprocComponent` hosts. The difference per tick is the master's overhead
 planner a trajectory window (7 arrays of 64 points) as in the real scenarios,
 and a third adds the recorder writing signals.csv.
 
-Run: .venv/bin/python benchmarks/bench_master_overhead.py [--ticks N]
+Then the values lane (`Component.step_values`), A/B interleaved in thread CPU
+time: a controller shaped like the real one (6 scalars and the 7 window
+arrays in, 17 scalars out) stepped through the master on mappings (its `step`
+returns `dict(zip(names, values))`, as `controllers.tracking.finite_outputs`
+does) and on the lane (`step_values` returns the values), each beside its
+direct loop (the same calls without the master).
+
+Run: .venv/bin/python benchmarks/bench_master_overhead.py [--ticks N] [--only table|lane]
 Target (DESIGN.md): the master adds under 10 us per tick.
 """
 
@@ -25,6 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from benchmarks.common import interleaved, load_average, min_and_median, speed_anchor  # noqa: E402
 from cosim.component import Component, Port  # noqa: E402
 from cosim.transport.inproc import InprocComponent, PythonComponentLaunch  # noqa: E402
 from cosim.engine.master import Master  # noqa: E402
@@ -89,6 +97,38 @@ class WindowController(Controller):
     inputs = Controller.inputs + tuple(Port(f"ref_{f}", size=WINDOW) for f in FIELDS)
 
 
+CONTROL_OUTPUTS = ("delta", "torque") + tuple(f"internal_{i}" for i in range(15))
+LANE_INPUTS = STATES + tuple(f"ref_{f}" for f in FIELDS)
+
+
+def _control_law(x, y, psi, vx, vy, r, ref_x, ref_y) -> tuple[float, ...]:
+    """17 floats from a few operations on the states and two window points."""
+    ey, ev = float(ref_y[3]) - y, 12.0 - vx
+    delta, torque = 0.1 * ey - 0.2 * psi, 50.0 * ev
+    return (delta, torque, ey, ev, psi, vy, r, x - float(ref_x[0]), delta * delta, torque * 1e-3,
+            ey * ev, vy * r, 0.5 * ev * ev, ey + ev, psi * vx, r * 0.1, vy - r)
+
+
+class MappingController(Component):
+    """The controller-shaped component on mappings: reads its inputs by name, returns a dict."""
+
+    inputs = tuple(Port(n) for n in STATES) + tuple(Port(f"ref_{f}", size=WINDOW) for f in FIELDS)
+    outputs = tuple(Port(n) for n in CONTROL_OUTPUTS)
+
+    def step(self, t, inputs):
+        values = _control_law(inputs["x"], inputs["y"], inputs["psi"], inputs["vx"], inputs["vy"],
+                              inputs["r"], inputs["ref_x"], inputs["ref_y"])
+        return dict(zip(CONTROL_OUTPUTS, values))
+
+
+class LaneController(MappingController):
+    """The same on the values lane: a tuple in declared order in, the 17 floats out."""
+
+    def step_values(self, t, inputs):
+        x, y, psi, vx, vy, r, ref_x, ref_y, *_ = inputs
+        return _control_law(x, y, psi, vx, vy, r, ref_x, ref_y)
+
+
 def direct_loop(ticks: int, window: bool) -> float:
     """Seconds for `ticks` ticks of the components called directly."""
     plant, planner = Plant(), Planner(window)
@@ -139,6 +179,80 @@ def master_loop(ticks: int, window: bool, record: bool = False) -> float:
     return elapsed
 
 
+def lane_direct(ticks: int, lane: bool) -> float:
+    """Thread CPU seconds per tick of plant, controller and windowed planner called directly
+    (the controller through `step_values` on a tuple, or `step` on a dict)."""
+    plant, planner, ctrl = Plant(), Planner(True), LaneController()
+    u = {"delta": 0.0, "torque": 0.0}
+    ref = planner.step(0.0, {"x": 0.0, "y": 0.0})
+    window = tuple(ref[f"ref_{f}"] for f in FIELDS)
+    start = time.thread_time()
+    for k in range(1, ticks + 1):
+        t = k * 0.01
+        s = plant.step(t, u)
+        if k % 10 == 0:
+            ref = planner.step(t, {"x": s["x"], "y": s["y"]})
+            window = tuple(ref[f"ref_{f}"] for f in FIELDS)
+        if lane:
+            out = ctrl.step_values(t, (*s.values(), *window))
+            u = {"delta": out[0], "torque": out[1]}
+        else:
+            u = ctrl.step(t, {**s, **ref})
+    return (time.thread_time() - start) / ticks
+
+
+def lane_master(ticks: int, lane: bool) -> float:
+    """Thread CPU seconds per tick of the same three through the master (initialization excluded)."""
+    class HostedPlant(InprocComponent):
+        direct_feedthrough = False
+
+    here = "bench_master_overhead"
+    ctrl_class = "LaneController" if lane else "MappingController"
+    comps = {
+        "plant": HostedPlant(PythonComponentLaunch("plant", f"{here}:Plant", {}, 1)),
+        "controller": InprocComponent(PythonComponentLaunch("controller", f"{here}:{ctrl_class}", {}, 1)),
+        "planner": InprocComponent(PythonComponentLaunch("planner", f"{here}:Planner", {"window": True}, 10)),
+    }
+    edges = [Edge("plant", n, "controller", n) for n in STATES]
+    edges += [Edge("plant", n, "planner", n) for n in ("x", "y")]
+    edges += [Edge("controller", n, "plant", n) for n in ("delta", "torque")]
+    edges += [Edge("planner", f"ref_{f}", "controller", f"ref_{f}") for f in FIELDS]
+    master = Master(comps, edges, tick=0.01, total_ticks=ticks)
+    on_lane = {p.name for p in master._plans if p.step_values is not None}
+    if on_lane != ({"controller"} if lane else set()):
+        raise SystemExit(f"the controller is not on the lane it should be on: {on_lane}")
+    master.initialize()
+    start = time.thread_time()
+    for k in range(1, ticks + 1):
+        master.step_tick(k)
+    return (time.thread_time() - start) / ticks
+
+
+def lane_ab(ticks: int, repeats: int) -> None:
+    """The values lane against the mapping path, interleaved; prints min / median us per tick."""
+    print(f"\nvalues lane, controller-shaped (6 scalars + 7 x {WINDOW} in, 17 out): {ticks} ticks, "
+          f"{repeats} interleaved rounds, thread CPU time; load {load_average()}, "
+          f"anchor {speed_anchor():.1f} ns")
+    samples = interleaved({
+        "mapping direct": lambda: lane_direct(ticks, False),
+        "mapping master": lambda: lane_master(ticks, False),
+        "lane direct": lambda: lane_direct(ticks, True),
+        "lane master": lambda: lane_master(ticks, True)}, repeats)
+    medians = {}
+    print(f"{'path':<10}{'direct us/tick':>22}{'master us/tick':>22}{'overhead us':>14}   (min / median)")
+    for path in ("mapping", "lane"):
+        direct = [x * 1e6 for x in samples[f"{path} direct"]]
+        master = [x * 1e6 for x in samples[f"{path} master"]]
+        overheads = [m - d for m, d in zip(master, direct)]
+        (d_min, d_med), (m_min, m_med) = min_and_median(direct), min_and_median(master)
+        o_min, o_med = min_and_median(overheads)
+        medians[path] = m_med
+        print(f"{path:<10}{d_min:>11.2f} / {d_med:<8.2f}{m_min:>11.2f} / {m_med:<8.2f}"
+              f"{o_min:>7.2f} / {o_med:<6.2f}")
+    print(f"lane - mapping through the master (medians): {medians['lane'] - medians['mapping']:+.2f} us/tick;"
+          f" load {load_average()}")
+
+
 def best_of(fn, repeats: int, *args) -> float:
     """Minimum over repeats (least disturbed by the other jobs on the machine)."""
     return min(fn(*args) for _ in range(repeats))
@@ -148,15 +262,25 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ticks", type=int, default=20000)
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--only", choices=("table", "lane"), default=None,
+                        help="only the three cases' table, or only the values lane A/B")
     args = parser.parse_args()
     sys.modules.setdefault("bench_master_overhead", sys.modules[__name__])
     n = args.ticks
-    print(f"{n} ticks, best of {args.repeats}")
+    if args.only != "lane":
+        overhead_table(n, args.repeats)
+    if args.only != "table":
+        lane_ab(n, args.repeats)
+
+
+def overhead_table(n: int, repeats: int) -> None:
+    """The three cases: direct and master seconds per tick (best of `repeats`), and their difference."""
+    print(f"{n} ticks, best of {repeats}")
     print(f"{'case':<34}{'direct us/tick':>16}{'master us/tick':>16}{'overhead us':>13}{'ratio':>8}")
     for label, window, record in (("scalars", False, False), ("with trajectory window", True, False),
                                   ("window + recorder", True, True)):
-        direct = best_of(direct_loop, args.repeats, n, window) / n * 1e6
-        master = best_of(master_loop, args.repeats, n, window, record) / n * 1e6
+        direct = best_of(direct_loop, repeats, n, window) / n * 1e6
+        master = best_of(master_loop, repeats, n, window, record) / n * 1e6
         print(f"{label:<34}{direct:>16.2f}{master:>16.2f}{master - direct:>13.2f}"
               f"{master / direct:>8.2f}")
 

@@ -27,6 +27,22 @@ unread outputs are costly may skip computing them; it must still return them,
 finite and of the declared size (holding one value is simplest), and its read
 outputs must not change. The default ignores the call.
 
+A component whose outputs are all scalars may also define the same step on
+plain sequences, which the in-process host then calls instead of `step` (no
+mapping built on either side; `initialize` keeps the mapping):
+
+    values_k = comp.step_values(t_k, inputs_k)  # optional
+
+`inputs_k` is a tuple with one value per declared input, in `inputs` order:
+the float or read-only array the mapping would hold. The result is a sequence
+(list or tuple) of Python floats, one per declared output, in `outputs` order.
+It must be exactly what `step` returns, the same state change included: write
+one in terms of the other (`step` as `dict(zip(names, self.step_values(...)))`).
+The master tests the result with one sum: a result that does not add up to a
+float (numpy scalars in it) is converted with `float()` as `step`'s mapping
+would be, but values are not looked at one by one, so an int among floats
+stays an int in the store. Over Zenoh the component is stepped with `step`.
+
 A class names its parameter model with `ModelReference("module:Name")`, imported
 when first read: a component process, which only constructs and steps its
 component, then starts without pydantic.
@@ -35,7 +51,7 @@ component, then starts without pydantic.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Mapping, Set
+from collections.abc import Callable, Mapping, Sequence, Set
 from dataclasses import dataclass
 from typing import Any, ClassVar, Union
 
@@ -87,6 +103,11 @@ class Component:
     Subclasses set `inputs` and `outputs` (tuples of Port), either as class
     attributes or in `__init__` when they depend on parameters, and override
     `step`. `initialize` defaults to calling `step` at t0.
+
+    Optional, not defined here: `step_values(t, inputs) -> sequence of floats`,
+    the same step as `step` on a tuple of the inputs in declared order,
+    returning the outputs in declared order (all scalars); the in-process host
+    calls it instead of `step` (see the module docstring).
 
     Class attributes:
         default_period: period in seconds used when the scenario names none
@@ -140,6 +161,14 @@ class ModelReference:
     def __get__(self, instance: Any, owner: type | None = None) -> Any:
         module, _, name = self.path.partition(":")
         return getattr(importlib.import_module(module), name)
+
+
+def values_step(component: Component) -> Callable[[float, tuple], Sequence[float]] | None:
+    """The component's `step_values` (bound), if it defines one and all its outputs are scalars."""
+    step_values = getattr(component, "step_values", None)
+    if not callable(step_values) or any(port.size != 1 for port in component.outputs):
+        return None
+    return step_values
 
 
 def frozen_copy(value: Any) -> np.ndarray:

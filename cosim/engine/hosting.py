@@ -24,10 +24,17 @@ class HostedComponent(Protocol):
         period_ticks: how many master ticks between two steps (>= 1).
 
     Optional, the values lane: a host may also offer `step_values(tick, t,
-    inputs) -> outputs`, the same step as `step` with both sides plain sequences
-    of floats, in the orders its `value_names` = (input names, output names)
-    gives. The master uses it for a component whose ports are all scalars and
-    are those names in that order (no mapping built or read per step).
+    inputs) -> outputs`, the same step as `step` with both sides plain
+    sequences, in the orders its `value_names` = (input names, output names)
+    gives: in, the float or read-only array the mapping would hold for each
+    input; out, one float per output. The master uses it (no mapping built or
+    read per step) for a component whose outputs are all scalars when
+    `value_names` names every input and every output in declared order (None:
+    no lane); `trace=True` keeps the mapping. The FMU host offers it for
+    Float64 scalar ports, the in-process host for a Python component that
+    defines `step_values` (`cosim.component`). The master tests the result's
+    length and type (one sum), unless the host sets `values_exact` = True:
+    it always returns a list of as many Python floats as outputs (the FMU host).
 
     Optional too: `use_outputs(names)`, which passes on to a Python component
     the outputs the run reads (`cosim.component.Component.use_outputs`); the

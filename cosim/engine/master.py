@@ -39,10 +39,10 @@ import numpy as np
 from cosim.errors import ComponentFailure, StopRequested
 from cosim.engine.crumb import CALL_START, CALL_STEP, CALL_STOP, crumb_code
 from cosim.engine.hosting import HostedComponent
-from cosim.engine.movers import FrozenArrays, input_builder, output_reader
+from cosim.engine.movers import FrozenArrays, input_builder, output_reader, values_picker
 from cosim.engine.schedule import step_order
 from cosim.engine.signals import ComponentSlots, SignalLayout, build_layout, transformed
-from cosim.engine.values import picker, value_problem
+from cosim.engine.values import value_problem
 
 _add_reduce = np.add.reduce
 
@@ -65,9 +65,9 @@ class _Plan:
     hosted: HostedComponent
     period: int
     slots: ComponentSlots
-    pick_inputs: Callable[[Any], tuple]   # values list -> scalar inputs in name order (values lane)
     out_start: int
     out_stop: int
+    frozen: FrozenArrays  # the master's read-only array copies, which the lane's mover reads
     index: int = 0  # position in step order, for the breadcrumb
 
     def __post_init__(self) -> None:
@@ -80,7 +80,11 @@ class _Plan:
         self.read_outputs = output_reader(self.slots.out_scalar_names)
         self.has_array_outputs = bool(self.slots.out_arrays)
         self.transforms = self.slots.transforms  # empty unless an input edge has scale/offset
-        self.step_values = _values_lane(self.hosted, self.slots)
+        # the values lane, when the host offers it for these ports: values -> the inputs tuple
+        self.step_values, self.pick_values = _values_lane(self.hosted, self.slots, self.frozen) or (None, None)
+        self.out_count = self.out_stop - self.out_start
+        # a host that vouches for its lane's results (a list of as many Python floats as outputs)
+        self.lane_exact = bool(getattr(self.hosted, "values_exact", False))
         self.out_block = _array_block(self.slots.out_arrays)
 
 
@@ -126,11 +130,11 @@ class Master:
         self.ticks_done = -1  # last completed tick; -1 before initialization
         self.crumb = crumb if crumb is not None else memoryview(bytearray(8)).cast("q")
         self.stop_request: StopRequested | None = None  # a component asked to end the run
-        self._plans = [self._plan(i, name) for i, name in enumerate(self.order)]
         self._frozen = FrozenArrays(
             self.arrays,
             {off: size for slots in self.layout.slots.values() for _, off, size in slots.in_arrays},
-            [span for plan in self._plans for span in plan.out_block])
+            [span for slots in self.layout.slots.values() for span in _array_block(slots.out_arrays)])
+        self._plans = [self._plan(i, name) for i, name in enumerate(self.order)]
         self._scalar_delays = self.layout.scalar_delays
         self._array_delays = self.layout.array_delays
         self._delayed_transforms = self.layout.delayed_transforms
@@ -146,8 +150,8 @@ class Master:
             raise ValueError(f"component {name!r}: period_ticks must be >= 1, got {period}")
         slots = self.layout.slots[name]
         start = slots.out_scalar_start
-        return _Plan(name, comp, period, slots, picker(slots.in_scalar_index), start,
-                     start + len(slots.out_scalar_names), index)
+        return _Plan(name, comp, period, slots, start, start + len(slots.out_scalar_names),
+                     self._frozen, index)
 
     def value(self, component: str, signal: str) -> Any:
         """Current value of an output signal (float, or a copy of the array)."""
@@ -210,7 +214,7 @@ class Master:
         """Run tick k: refresh delayed inputs, step the due components in order.
 
         This is the hot loop: a host that offers the values lane is stepped on plain
-        floats (`_step_on_values`), the others on mappings (`_step_on_mapping`).
+        sequences (`_step_on_values`), the others on mappings (`_step_on_mapping`).
         """
         t = self.t0 + k * self.tick
         if self._has_delays:
@@ -234,15 +238,23 @@ class Master:
             observer.after_tick(k, t, values, self.arrays)
 
     def _step_on_values(self, plan: _Plan, k: int, t: float, values: list[float]) -> None:
-        """One step through the host's values lane: scalars in, scalars out, no mapping."""
+        """One step through the host's values lane: a tuple in, scalar outputs out, no mapping."""
         try:
-            new = plan.step_values(k, t, plan.pick_inputs(values))
+            new = plan.step_values(k, t, plan.pick_values(values))
         except StopRequested as request:  # the tick completes; `run` ends after it
             self.stop_request = request
             self._scatter(plan, request.outputs, k, t)
             return
-        if not _isfinite(sum(new)) and not all(map(_isfinite, new)):  # one test, diagnosis on failure
-            raise _diagnose(plan, dict(zip(plan.slots.out_scalar_names, new)), k, t)
+        if plan.lane_exact:  # floats, as many as outputs: only finiteness to test
+            fine = _isfinite(sum(new)) or all(map(_isfinite, new))
+        else:
+            try:  # one sum tests them all: floats (a numpy scalar makes it another type), finite
+                fine = (len(new) == plan.out_count and type(total := sum(new, 0.0)) is float
+                        and (_isfinite(total) or all(map(_isfinite, new))))
+            except Exception:  # not a sequence, or not numbers
+                fine = False
+        if not fine:
+            new = _lane_outputs(plan, new, k, t)
         values[plan.out_start:plan.out_stop] = new
 
     def _step_on_mapping(self, plan: _Plan, k: int, t: float, values: list[float]) -> None:
@@ -349,15 +361,43 @@ def _due_table(plans: Sequence[_Plan], limit: int = 4096) -> list[list[_Plan]] |
     return [[p for p in plans if r % p.period == 0] for r in range(cycle)]
 
 
-def _values_lane(hosted: Any, slots: ComponentSlots) -> Callable[..., Any] | None:
-    """The host's `step_values` when it offers one for exactly this component's scalar ports, else None."""
+def _values_lane(hosted: Any, slots: ComponentSlots,
+                 frozen: FrozenArrays) -> tuple[Callable[..., Any], Callable] | None:
+    """(the host's `step_values`, the mover of its inputs tuple) when the host offers the lane for
+    exactly this component's ports (every input in declared order; scalar outputs only, in slot
+    order), else None."""
     lane = getattr(hosted, "step_values", None)
     names = getattr(hosted, "value_names", None)
-    if lane is None or slots.in_arrays or slots.out_arrays:
+    if lane is None or names is None or slots.out_arrays:
         return None
-    if names != (tuple(slots.in_scalar_names), tuple(slots.out_scalar_names)):
+    declared = tuple(port.name for port in hosted.inputs)
+    if tuple(names) != (declared, tuple(slots.out_scalar_names)):
         return None
-    return lane
+    sources = {name: (False, slot) for name, slot in zip(slots.in_scalar_names, slots.in_scalar_index)}
+    sources.update((name, (True, offset)) for name, offset, _ in slots.in_arrays)
+    return lane, values_picker([sources[name] for name in declared], frozen)
+
+
+def _lane_outputs(plan: _Plan, new: Any, k: int, t: float) -> list[float]:
+    """Outputs of the values lane that failed the quick test: as floats (what `float()` makes of each,
+    as the mapping path reads them), or the failure naming the bad output."""
+    try:
+        count = len(new)
+    except TypeError:
+        return_type = type(new).__name__
+        raise ComponentFailure(plan.name, k, t, f"step_values returned {return_type}, "
+                               f"expected a sequence of {plan.out_count} floats") from None
+    if count != plan.out_count:
+        raise ComponentFailure(plan.name, k, t, f"step_values returned {count} values for "
+                               f"{plan.out_count} outputs")
+    outputs = dict(zip(plan.slots.out_scalar_names, new))
+    try:
+        floats = plan.read_outputs(outputs)
+    except Exception:
+        raise _diagnose(plan, outputs, k, t) from None
+    if not all(map(_isfinite, floats)):
+        raise _diagnose(plan, outputs, k, t)
+    return floats
 
 
 def _array_block(out_arrays: Sequence[tuple[str, int, int]]) -> list[tuple[int, int]]:

@@ -9,7 +9,9 @@ generated once per component, as namedtuple and dataclasses generate their
 methods: a dict display whose keys are the port names (as constants) and whose
 values are subscripts of the store, and a list display of `float(outputs[name])`.
 They do exactly what the generic code does, in the same order (scalar inputs in
-slot order, then the array inputs), with a few bytecodes per port.
+slot order, then the array inputs), with a few bytecodes per port. For a host
+on the master's values lane (`cosim.engine.hosting`) the inputs are a tuple
+display instead, in the host's own port order (`values_picker`).
 
 Array inputs are read from `FrozenArrays`, the read-only copies of the array
 slots handed to readers: made when first read after their owner writes (a
@@ -27,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from cosim.component import frozen_copy
+from cosim.engine.values import picker
 
 
 class FrozenArrays(dict):
@@ -83,6 +86,22 @@ def input_builder(scalars: Sequence[tuple[str, int]],
     return _compile("build_inputs", "values, frozen", "{" + ", ".join(items) + "}")
 
 
+def values_picker(sources: Sequence[tuple[bool, int]],
+                  frozen: FrozenArrays) -> Callable[[list[float]], tuple]:
+    """A function of `values` returning a component's inputs as a tuple (the values lane).
+
+    Args:
+        sources: per input, in the order the host wants them: (True, offset in
+            `arrays`) for an array input, (False, slot in `values`) for a scalar.
+        frozen: the read-only copies the array inputs are read from (bound in).
+    """
+    if not any(is_array for is_array, _ in sources):  # scalars only: one C call
+        return picker([at for _, at in sources])
+    items = [f"frozen[{int(at)}]" if is_array else f"values[{int(at)}]" for is_array, at in sources]
+    return _compile("pick_values", "values", "(" + "".join(f"{item}, " for item in items) + ")",
+                    frozen=frozen)
+
+
 def output_reader(names: Sequence[str]) -> Callable[[Any], list[float]]:
     """A function of a component's outputs mapping returning its scalar outputs as floats, in order.
 
@@ -93,9 +112,10 @@ def output_reader(names: Sequence[str]) -> Callable[[Any], list[float]]:
                     "[" + ", ".join(f"float(outputs[{name!r}])" for name in names) + "]")
 
 
-def _compile(name: str, arguments: str, expression: str) -> Callable[..., Any]:
-    """def name(arguments): return expression, compiled; the names in it are literals (repr)."""
+def _compile(name: str, arguments: str, expression: str, **bound: Any) -> Callable[..., Any]:
+    """def name(arguments): return expression, compiled; the names in it are literals (repr),
+    `float` and the `bound` objects (globals of the function)."""
     source = f"def {name}({arguments}):\n    return {expression}\n"
     namespace: dict[str, Any] = {}
-    exec(compile(source, f"<cosim.engine.movers.{name}>", "exec"), {"float": float}, namespace)
+    exec(compile(source, f"<cosim.engine.movers.{name}>", "exec"), {"float": float, **bound}, namespace)
     return namespace[name]

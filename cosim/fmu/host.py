@@ -81,6 +81,7 @@ class FmuComponent(FmuInstance):
         self._stepper: stepper.Stepper | None = None  # None: the per-call path
         self._pick_inputs = picker(self._in_names)
         self.value_names = (tuple(self._in_names), tuple(self._out_names))  # the values lane
+        self.values_exact = True  # step_values gives a list of len(outputs) Python floats
 
     def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Instantiate, set parameters and inputs, initialize at t0, read outputs."""

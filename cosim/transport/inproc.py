@@ -10,9 +10,9 @@ text of a component's exception, shared with the Zenoh runner.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Mapping, Set
+from collections.abc import Mapping, Sequence, Set
 
-from cosim.component import Component, ComponentError, Port, Value, ports_by_name
+from cosim.component import Component, ComponentError, Port, Value, ports_by_name, values_step
 from cosim.errors import ComponentFailure, UserError, did_you_mean
 from cosim.transport.launch import PythonComponentLaunch  # re-exported: its historical home
 from cosim.transport.parameters import ParameterProblem, check_parameters  # ParameterProblem re-exported
@@ -99,7 +99,10 @@ class InprocComponent:
     """A Python component hosted in the master's own process.
 
     Exceptions raised by the component's `initialize`/`step` become
-    `ComponentFailure` naming the component, the tick and the cause.
+    `ComponentFailure` naming the component, the tick and the cause. A
+    component that defines `step_values` and has no array output is offered
+    on the master's values lane (`value_names`, `step_values`); else
+    `value_names` is None and the master steps it on mappings.
     """
 
     def __init__(self, launch: PythonComponentLaunch) -> None:
@@ -110,6 +113,10 @@ class InprocComponent:
         self.component = construct_component(launch)
         self.inputs: tuple[Port, ...] = tuple(self.component.inputs)
         self.outputs: tuple[Port, ...] = tuple(self.component.outputs)
+        self._step_values = values_step(self.component)
+        self.value_names: tuple[tuple[str, ...], tuple[str, ...]] | None = None
+        if self._step_values is not None:
+            self.value_names = (tuple(p.name for p in self.inputs), tuple(p.name for p in self.outputs))
         self._last: tuple[int | None, float] = (None, 0.0)  # (tick, t) of the last call, for finish() errors
 
     def use_outputs(self, names: Set[str]) -> None:
@@ -133,6 +140,14 @@ class InprocComponent:
         self._last = (tick, t)
         try:
             return self.component.step(t, inputs)
+        except Exception as exc:
+            raise ComponentFailure(self.name, tick, t, describe_exception(exc)) from exc
+
+    def step_values(self, tick: int, t: float, inputs: Sequence[Value]) -> Sequence[float]:
+        """Call the component's `step_values(t, inputs)` (the master's values lane, see `value_names`)."""
+        self._last = (tick, t)
+        try:
+            return self._step_values(t, inputs)
         except Exception as exc:
             raise ComponentFailure(self.name, tick, t, describe_exception(exc)) from exc
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim.engine.movers import FrozenArrays, input_builder, output_reader
+from cosim.engine.movers import FrozenArrays, input_builder, output_reader, values_picker
 
 
 def test_inputs_are_a_fresh_dict_scalars_first_in_slot_order_then_arrays():
@@ -19,6 +19,20 @@ def test_inputs_are_a_fresh_dict_scalars_first_in_slot_order_then_arrays():
     assert first is not second and first["ref"] is second["ref"]  # one copy, shared
     assert first["ref"].tolist() == [2.0, 3.0, 4.0] and not first["ref"].flags.writeable
     assert input_builder([], [])(values, frozen) == {}
+
+
+def test_the_values_lane_inputs_are_a_tuple_in_the_given_order_arrays_shared():
+    arrays = np.arange(6, dtype=np.float64)
+    frozen = FrozenArrays(arrays, {2: 3, 5: 1})
+    pick = values_picker([(False, 2), (True, 2), (False, 0), (True, 5)], frozen)
+    values = [10.0, 11.0, 12.0]
+    first, second = pick(values), pick(values)
+    assert type(first) is tuple and first[0] == 12.0 and first[2] == 10.0
+    assert first[1].tolist() == [2.0, 3.0, 4.0] and not first[1].flags.writeable
+    assert first[1] is second[1] and first[3].tolist() == [5.0]
+    assert values_picker([(False, 1)], frozen)(values) == (11.0,)
+    assert values_picker([(False, 1), (False, 0)], frozen)(values) == (11.0, 10.0)
+    assert values_picker([], frozen)(values) == ()
 
 
 def test_outputs_are_read_as_floats_in_order_and_bad_ones_raise():

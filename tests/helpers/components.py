@@ -245,3 +245,51 @@ class OutputReader(Component):
     def step(self, t, inputs):
         heard = self.heard if self.told is not None else 0.0
         return {"y": inputs["u"], "heard": heard, "a": np.full(3, t), "b": np.full(3, -t)}
+
+
+class Tracker(Component):
+    """Scalar and array inputs, interleaved; scalar outputs; stepped on plain values
+    (`step_values`, the master's values lane in-process), `step` a thin wrapper over it.
+
+    u = k * tanh(mean(ref) - x) + tanh(v * dot(w, ref)) / 4, integral += u * 1e-2,
+    energy = integral ** 2 / 2 (or `bad` from t >= bad_at on).
+    """
+
+    inputs = (Port("x"), Port("ref", size=3), Port("v"), Port("w", size=3))
+    outputs = (Port("u"), Port("integral"), Port("energy"))
+    input_names = tuple(port.name for port in inputs)
+    output_names = tuple(port.name for port in outputs)
+
+    def __init__(self, k: float = 0.8, bad: float = math.nan, bad_at: float | None = None):
+        self.k, self.bad, self.bad_at = k, bad, bad_at
+        self.integral = 0.25
+        self.steps = 0
+        self.received: list[tuple] = []  # the input arrays of every step, to check they are read-only
+
+    def step_values(self, t: float, inputs: tuple) -> list[float]:
+        x, ref, v, w = inputs
+        self.received.append((ref, w))
+        self.steps += 1
+        u = self.k * math.tanh(float(np.mean(ref)) - x) + math.tanh(v * float(np.dot(w, ref))) / 4.0
+        self.integral += u * 1e-2
+        energy = 0.5 * self.integral ** 2
+        if self.bad_at is not None and t >= self.bad_at:
+            energy = self.bad
+        return [u, self.integral, energy]
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        values = self.step_values(t, tuple(inputs[name] for name in self.input_names))
+        return dict(zip(self.output_names, values))
+
+    def finish(self) -> dict[str, float]:
+        return {"steps": float(self.steps)}
+
+
+class TrackerWithoutLane(Tracker):
+    """The same component without `step_values`: the master steps it on mappings."""
+
+    step_values = None  # type: ignore[assignment]
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        values = Tracker.step_values(self, t, tuple(inputs[name] for name in self.input_names))
+        return dict(zip(self.output_names, values))

@@ -66,6 +66,42 @@ def test_inproc_and_zenoh_give_identical_files(tmp_path, lag_fmus):
     assert manifest["live"]["endpoint"].startswith("tcp/")
 
 
+LANE_SCENARIO = """\
+name: lane_demo
+duration: 0.5
+tick: 0.01
+components:
+  mixer:
+    python: tests.helpers.components:Mixer
+    parameters: {gain: 0.5}
+  track:
+    python: tests.helpers.components:Tracker
+    parameters: {k: 0.7}
+sources:
+  ramp: {kind: ramp, start: 0.0, end: 1.0, t_start: 0.0, t_end: 0.5}
+connections:
+  - {from: ramp.value, to: mixer.u}
+  - {from: mixer.y, to: track.x}
+  - {from: mixer.z, to: track.ref}
+  - {from: ramp.value, to: track.v}
+  - {from: mixer.z, to: track.w, delay: 1}
+"""
+
+
+def test_a_component_on_the_values_lane_in_process_gives_the_zenoh_runs_files(tmp_path):
+    """In-process the tracker steps on `step_values` (scalar and array inputs), over Zenoh on `step`."""
+    scenario = tmp_path / "lane.yaml"
+    scenario.write_text(LANE_SCENARIO)
+    for transport in ("inproc", "zenoh"):
+        assert _run(scenario, tmp_path / transport, transport) == 0
+    inproc, zenoh = (tmp_path / "inproc" / "signals.csv"), (tmp_path / "zenoh" / "signals.csv")
+    assert inproc.read_bytes() == zenoh.read_bytes()
+    names, data = read_signals(inproc)
+    assert "track.energy" in names and len(data) == 51
+    metrics = [json.loads((tmp_path / t / "metrics.json").read_text()) for t in ("inproc", "zenoh")]
+    assert metrics[0] == metrics[1] and metrics[0]["track.steps"] == 51.0
+
+
 def test_nan_over_zenoh_fails_the_run_with_a_readable_partial_file(tmp_path, capsys):
     scenario = tmp_path / "gain.yaml"
     scenario.write_text(GOOD)

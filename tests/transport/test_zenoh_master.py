@@ -1,5 +1,7 @@
 """The real master loop over the Zenoh transport gives bit-identical signals to
-the same closed loop hosted in-process (multi-rate, feedback with delays)."""
+the same closed loop hosted in-process (multi-rate, feedback with delays; a
+component that in-process steps on the master's values lane, with scalar and
+array inputs, and over Zenoh on mappings)."""
 
 from __future__ import annotations
 
@@ -17,9 +19,12 @@ from tests.helpers.components import launch, run_processes
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(60)]
 
 SPECS = [launch("m1", "Mixer", gain=0.7), launch("m2", "Mixer", 2, gain=-1.3),
-         launch("echo", "Echo")]
+         launch("echo", "Echo"), launch("track", "Tracker", k=1.3)]
 EDGES = [Edge("m1", "z", "m2", "w"), Edge("m2", "z", "m1", "w", 1),
-         Edge("m2", "y", "echo", "u"), Edge("echo", "y", "m1", "u", 1)]
+         Edge("m2", "y", "echo", "u"), Edge("echo", "y", "m1", "u", 1),
+         Edge("m1", "y", "track", "x"), Edge("m1", "z", "track", "ref"),
+         Edge("echo", "y", "track", "v"), Edge("m2", "z", "track", "w"),
+         Edge("track", "u", "m2", "u", 1)]
 
 
 class Tape:
@@ -35,19 +40,22 @@ class Tape:
         self.rows.append((tick, t, np.array(values, dtype=np.float64).tobytes(), arrays.tobytes()))
 
 
-def run(hosted, ticks: int) -> Tape:
+def run(hosted, ticks: int) -> tuple[Tape, Master]:
     tape = Tape()
     master = Master(hosted, EDGES, 0.01, ticks, 0.0, [tape])
     master.run()
     master.stop_all()
-    return tape
+    return tape, master
 
 
 def test_master_over_zenoh_matches_inproc_bit_for_bit():
-    inproc = run({s.name: InprocComponent(s) for s in SPECS}, 200)
+    inproc, in_master = run({s.name: InprocComponent(s) for s in SPECS}, 200)
     run_id = f"t-master-{os.getpid()}"
     with ZenohComponents(SPECS, run_id) as hosted:
-        zenoh = run(hosted.components, 200)
+        zenoh, zenoh_master = run(hosted.components, 200)
+    lanes = {master: {p.name for p in master._plans if p.step_values is not None}
+             for master in (in_master, zenoh_master)}
+    assert lanes[in_master] == {"track"} and lanes[zenoh_master] == set()
     assert len(zenoh.rows) == 201
     assert zenoh.rows == inproc.rows
     assert run_processes(run_id) == []
