@@ -341,3 +341,10 @@ def test_a_host_that_vouches_for_its_results_is_only_tested_for_finiteness():
     assert type(master.values[0]) is float
     with pytest.raises(ComponentFailure, match="output 'z' is non-finite: nan"):
         _run(Vouching(bad=math.nan, bad_at=2), trace=False, ticks=3)
+
+
+def test_the_backstepping_controller_is_offered_the_lane_for_all_its_ports():
+    host = InprocComponent(PythonComponentLaunch(
+        "controller", "controllers.backstepping:BacksteppingController", {}, 1))
+    assert host.value_names == (tuple(p.name for p in host.inputs), tuple(p.name for p in host.outputs))
+    assert len(host.value_names[0]) == 13 and len(host.value_names[1]) == 17
