@@ -93,7 +93,11 @@ class _Table:
     without a system call per row. The file grows by windows of about
     `WINDOW_BYTES`, allocated first (`posix_fallocate`, so a full disk is an
     OSError there, never a SIGBUS on a later write); only the current window
-    is mapped, so memory stays flat with the run's length. The window's pages
+    is mapped, so memory stays flat with the run's length. A window is no
+    larger than the rows still expected (`expected_rows`, known from the
+    run's ticks and the table's period) need, rounded up to whole rows and
+    pages: a short run reserves about what it writes, not a whole window per
+    table, which the file system would allocate, then free at close. The window's pages
     are faulted in writable `POPULATE_BYTES` at a time ahead of the rows
     (`make_room`), not one trap per page in the middle of a tick.
 
@@ -105,11 +109,13 @@ class _Table:
         offset / size / period: for an array signal, its slice of the master's
             array buffer and its component's period in ticks.
         integers: the columns written as integers.
+        expected_rows: the rows the run will write at most, if known (None: windows of
+            `WINDOW_BYTES`; rows beyond it still go in, in windows of that size).
     """
 
     def __init__(self, folder: Path, stem: str, columns: list[str], output: dict[str, Any],
                  offset: int = 0, size: int = 0, period: int = 1,
-                 integers: Sequence[str] = ()) -> None:
+                 integers: Sequence[str] = (), expected_rows: int | None = None) -> None:
         self.offset, self.stop, self.period = offset, offset + size, period
         spool = folder / f"{stem}{SPOOL_SUFFIX}"
         self.header: SpoolHeader = write_header(spool, f"{stem}.csv", columns, period=period,
@@ -121,8 +127,10 @@ class _Table:
         os.posix_fallocate(self.fd, 0, DATA_OFFSET)
         self._count_map = mmap.mmap(self.fd, DATA_OFFSET)
         self.count = memoryview(self._count_map).cast("q")
-        step = math.lcm(self.row_bytes, mmap.ALLOCATIONGRANULARITY)
-        self.window_bytes = step * max(1, WINDOW_BYTES // step)  # whole rows, whole pages
+        self.step = math.lcm(self.row_bytes, mmap.ALLOCATIONGRANULARITY)  # whole rows, whole pages
+        self.largest_window = self.step * max(1, WINDOW_BYTES // self.step)
+        self.expected_bytes = None if expected_rows is None else expected_rows * self.row_bytes
+        self.window_bytes = 0  # the current window's size
         self.window: mmap.mmap | None = None
         # data bytes: where the window starts and how far into it rows are written
         self.base = self.at = 0
@@ -157,9 +165,18 @@ class _Table:
         base = self.base if self.window is None else self.base + self.window_bytes
         if self.window is not None:
             self.window.close()
-        os.posix_fallocate(self.fd, DATA_OFFSET + base, self.window_bytes)
-        self.window = mmap.mmap(self.fd, self.window_bytes, offset=DATA_OFFSET + base)
-        self.base, self.at, self.ready = base, 0, 0
+        size = self._window_size(base)
+        os.posix_fallocate(self.fd, DATA_OFFSET + base, size)
+        self.window = mmap.mmap(self.fd, size, offset=DATA_OFFSET + base)
+        self.base, self.at, self.ready, self.window_bytes = base, 0, 0, size
+
+    def _window_size(self, base: int) -> int:
+        """The size of a window starting `base` data bytes into the spool: `largest_window`,
+        or less when the rows still expected need less (whole steps of rows and pages)."""
+        if self.expected_bytes is None or self.expected_bytes <= base:
+            return self.largest_window
+        steps = -(-(self.expected_bytes - base) // self.step)
+        return self.step * min(steps, self.largest_window // self.step)
 
     def close(self) -> None:
         """Unmap and cut the spool to its complete rows (safe to call twice)."""
@@ -245,9 +262,11 @@ class Recorder:
         self._pack_into = struct.Struct(f"={1 + len(index)}d").pack_into
         self._pack_time_into = struct.Struct("=d").pack_into
         integer = {f"{c}.{p}" for (c, p), port in layout.ports.items() if is_integer(port.type)}
+        ticks = getattr(master, "total_ticks", None)  # the rows: ticks 0..N (of the period)
         self._signals = _Table(self.out_dir, SIGNALS_FILE[:-len(".csv")], ["time"] + self.columns,
                                self._output(["time"] + self.columns),
-                               integers=[n for n in self.columns if n in integer])
+                               integers=[n for n in self.columns if n in integer],
+                               expected_rows=None if ticks is None else ticks + 1)
         self._tables = [self._signals]
         groups: dict[int, list[_Table]] = {}
         for comp, signal, offset, size in layout.array_signals():
@@ -259,7 +278,8 @@ class Recorder:
                 columns = ["time"] + cells
                 table = _Table(self.out_dir / ARRAYS_DIR, name, columns,
                                self._output(columns, name), offset, size, period,
-                               cells if name in integer else ())
+                               cells if name in integer else (),
+                               None if ticks is None else ticks // period + 1)
                 self._tables.append(table)
                 groups.setdefault(period, []).append(table)
         self._array_groups = sorted(groups.items())

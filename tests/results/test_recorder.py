@@ -245,6 +245,55 @@ def test_rows_across_many_spool_windows_and_a_replaced_array_buffer(tmp_path, mo
         assert (tmp_path / name).read_bytes() == expected, name
 
 
+def test_spool_windows_reserve_about_the_rows_the_run_writes(tmp_path, monkeypatch):
+    """Each table's windows are sized to the rows its run's ticks give it (whole rows and
+    pages): a short run reserves less than a whole window per table, every CSV byte as
+    the reference."""
+    import cosim.results.recorder as recorder_module
+
+    reserved: dict[int, int] = {}
+    real_allocate = os.posix_fallocate
+
+    def allocate(fd, offset, length):
+        reserved[fd] = max(reserved.get(fd, 0), offset + length)
+        return real_allocate(fd, offset, length)
+
+    monkeypatch.setattr(recorder_module.os, "posix_fallocate", allocate)
+    master, snaps = _run(tmp_path, ticks=300, flush_interval=1e9, keep_spool=True)
+    for table in snaps.recorder._tables:
+        needed = recorder_module.DATA_OFFSET + table.rows * table.row_bytes
+        assert table.rows == 300 // table.period + 1
+        assert table.header.spool_path.stat().st_size == needed  # cut to its rows
+    assert len(reserved) == len(snaps.recorder._tables)
+    for table in snaps.recorder._tables:
+        assert table.step < table.largest_window  # a whole window would be more than the rows
+    assert sorted(reserved.values()) == sorted(
+        recorder_module.DATA_OFFSET + -(-t.rows * t.row_bytes // t.step) * t.step
+        for t in snaps.recorder._tables)
+    for name, expected in expected_files(master, snaps).items():
+        assert (tmp_path / name).read_bytes() == expected, name
+
+
+def test_rows_beyond_the_expected_ones_go_into_further_windows(tmp_path, monkeypatch):
+    """A table told to expect fewer rows than it gets keeps every row (windows of
+    `WINDOW_BYTES` after the expected ones)."""
+    import cosim.results.recorder as recorder_module
+    from cosim.results.recorder import _Table
+
+    monkeypatch.setattr(recorder_module, "WINDOW_BYTES", 3 * 4096)
+    table = _Table(tmp_path, "t", ["time", "x"], {"every": 1, "formats": ("csv",), "meta": ({}, {})},
+                   expected_rows=10)
+    assert table._window_size(0) == table.step  # 10 rows of 16 bytes: one page
+    for row in range(2000):  # 32 kB: past the expected page, then windows of three pages
+        at = table.make_room() if table.at > table.room else table.at  # as `after_tick` does
+        table.window[at:at + 16] = np.array([row, -row], dtype=np.float64).tobytes()
+        table.at += 16
+        table.rows = table.count[0] = row + 1
+    table.close()
+    data = np.fromfile(table.header.spool_path, dtype=np.float64, offset=recorder_module.DATA_OFFSET)
+    assert data.reshape(-1, 2)[:, 0].tolist() == list(range(2000))
+
+
 @pytest.mark.parametrize("populate", ["one-page", "kernel-refuses"])
 def test_pages_faulted_in_ahead_of_the_rows_or_not(tmp_path, monkeypatch, populate):
     """The spool's pages made ready ahead of the rows a page at a time (rows straddle
