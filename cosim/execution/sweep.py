@@ -328,8 +328,9 @@ CLUSTER_CONFIG = {"distributed.admin.tick.interval": "1s",
 
 def local_cluster(workers: int, **options: Any) -> Any:
     """The `distributed.LocalCluster` a sweep starts: `workers` processes of one thread each,
-    no dashboard, quiet logs, Dask's periodic work slowed (`CLUSTER_CONFIG`); `options`
-    are more LocalCluster keyword arguments (e.g. processes=False)."""
+    no dashboard, quiet logs, Dask's periodic work slowed (`CLUSTER_CONFIG`), the scheduler's
+    streams to the workers batched every `BATCH_INTERVAL`; `options` are more LocalCluster
+    keyword arguments (e.g. processes=False)."""
     import dask
     import distributed.scheduler
     from distributed import LocalCluster
