@@ -375,3 +375,33 @@ def test_a_sweeps_client_and_cluster_batch_their_messages_every_millisecond():
             assert client.submit(sum, [1, 2], pure=False).result() == 3
         with Client(cluster) as client:
             assert client.scheduler_comm.interval == 0.01
+
+
+def _done_or_lost(index, overrides, run_dir):
+    """A run task whose sample 1 is lost (its task raises, as with a dead worker)."""
+    if index == 1:
+        raise RuntimeError("worker gone")
+    return "ok", {"x": float(index)}, ""
+
+
+def test_finished_samples_come_back_in_one_gather_and_a_lost_one_fails(tmp_path, monkeypatch):
+    """The results of the finished tasks are fetched together once all are done (not one
+    round trip per sample); a task that did not finish is a failed sample, in job order."""
+    from distributed import Client
+
+    from cosim.execution.sweep import execute_samples
+
+    gathered = []
+    real_gather = Client.gather
+
+    def gather(self, futures, *args, **kwargs):
+        gathered.append(len(futures))
+        return real_gather(self, futures, *args, **kwargs)
+
+    monkeypatch.setattr(Client, "gather", gather)
+    jobs = [(i, [], tmp_path / f"s{i}") for i in range(4)]
+    outcomes = execute_samples(_done_or_lost, jobs, None, {"processes": False, "n_workers": 1})
+    assert outcomes == [("ok", {"x": 0.0}, ""),
+                        ("failed", {}, "sample 1: task lost: RuntimeError: worker gone"),
+                        ("ok", {"x": 2.0}, ""), ("ok", {"x": 3.0}, "")]
+    assert gathered == [3]
