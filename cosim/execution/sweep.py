@@ -438,7 +438,10 @@ def _outcomes(client: Any, jobs: Sequence[tuple[int, list[str], Path]],
     """
     from distributed import wait
 
-    wait(futures)
+    # `wait` goes through the current client: through another one the caller holds (as
+    # bench_sweep does) it returned ~2 s after the last task
+    with client.as_current():
+        wait(futures)
     finished = [f for f in futures if f.status == "finished"]
     results = dict(zip((f.key for f in finished), client.gather(finished)))
     outcomes = []

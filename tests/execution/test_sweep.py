@@ -405,3 +405,28 @@ def test_finished_samples_come_back_in_one_gather_and_a_lost_one_fails(tmp_path,
                         ("failed", {}, "sample 1: task lost: RuntimeError: worker gone"),
                         ("ok", {"x": 2.0}, ""), ("ok", {"x": 3.0}, "")]
     assert gathered == [3]
+
+
+def test_the_samples_are_awaited_through_the_sweeps_own_client(tmp_path, monkeypatch):
+    """`distributed.wait` uses the current client: with one of the caller's open (made
+    after the sweep's cluster, so the default), the sweep still waits through its own
+    (through the caller's, the wait ended ~2 s after the last task, on a tick)."""
+    import distributed
+    from distributed import Client, default_client
+
+    from cosim.execution.sweep import execute_samples, local_cluster
+
+    waited_with = []
+    real_wait = distributed.wait
+
+    def wait(futures, *args, **kwargs):
+        waited_with.append((default_client(), {f.client for f in futures}))
+        return real_wait(futures, *args, **kwargs)
+
+    monkeypatch.setattr(distributed, "wait", wait)
+    jobs = [(i, [], tmp_path / f"s{i}") for i in (0, 2)]
+    with local_cluster(1, processes=False) as cluster, Client(cluster) as callers:
+        outcomes = execute_samples(_done_or_lost, jobs, cluster.scheduler_address, None)
+        [(current, owners)] = waited_with
+        assert current is not callers and owners == {current}
+    assert outcomes == [("ok", {"x": 0.0}, ""), ("ok", {"x": 2.0}, "")]
