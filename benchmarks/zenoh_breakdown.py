@@ -81,8 +81,11 @@ def inproc_steps(prepared, make_master) -> tuple[dict[str, list[float]], float]:
 
     hosts = {launch.name: InprocComponent(launch) for launch in prepared.launches}
     durations: dict[str, list[float]] = {name: [] for name in hosts}
-    for name, host in hosts.items():
-        host.component.step = _timed(host.component.step, durations[name], time.thread_time)
+    for name, host in hosts.items():     # the step the master calls: the values lane's, else step
+        if host.value_names is not None:
+            host._step_values = _timed(host._step_values, durations[name], time.thread_time)
+        else:
+            host.component.step = _timed(host.component.step, durations[name], time.thread_time)
     master = make_master(prepared, hosts)
     try:
         master.initialize()
