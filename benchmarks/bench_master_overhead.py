@@ -129,28 +129,35 @@ class LaneController(MappingController):
         return _control_law(x, y, psi, vx, vy, r, ref_x, ref_y)
 
 
-def direct_loop(ticks: int, window: bool) -> float:
-    """Seconds for `ticks` ticks of the components called directly."""
+def direct_loop(ticks: int, window: bool, ctrl: Component | None = None, call=None,
+                clock=time.perf_counter) -> float:
+    """Seconds (of `clock`) for `ticks` ticks of the components called directly.
+
+    `call(t, plant_outputs, planner_outputs)` steps the controller and returns its outputs;
+    default: `ctrl.step` on the merged dict.
+    """
     plant, planner = Plant(), Planner(window)
-    ctrl = WindowController() if window else Controller()
+    ctrl = ctrl or (WindowController() if window else Controller())
+    call = call or (lambda t, s, ref: ctrl.step(t, {**s, **ref}))
     u = {"delta": 0.0, "torque": 0.0}
     ref = planner.step(0.0, {"x": 0.0, "y": 0.0})
-    start = time.perf_counter()
+    start = clock()
     for k in range(1, ticks + 1):
         t = k * 0.01
         s = plant.step(t, u)
         if k % 10 == 0:
             ref = planner.step(t, {"x": s["x"], "y": s["y"]})
-        u = ctrl.step(t, {**s, **ref})
-    return time.perf_counter() - start
+        u = call(t, s, ref)
+    return clock() - start
 
 
-def _master(ticks: int, window: bool, observers=()) -> Master:
+def _master(ticks: int, window: bool, observers=(), ctrl_class: str | None = None) -> Master:
+    """Plant, controller (`ctrl_class`, default by `window`) and planner, wired, through the master."""
     class HostedPlant(InprocComponent):
         direct_feedthrough = False
 
     here = "bench_master_overhead"
-    ctrl_class = "WindowController" if window else "Controller"
+    ctrl_class = ctrl_class or ("WindowController" if window else "Controller")
     comps = {
         "plant": HostedPlant(PythonComponentLaunch("plant", f"{here}:Plant", {}, 1)),
         "controller": InprocComponent(PythonComponentLaunch("controller", f"{here}:{ctrl_class}", {}, 1)),
@@ -160,7 +167,8 @@ def _master(ticks: int, window: bool, observers=()) -> Master:
     edges = [Edge("plant", n, "controller", n) for n in STATES]
     edges += [Edge("plant", n, "planner", n) for n in ("x", "y")]
     edges += [Edge("controller", n, "plant", n) for n in ("delta", "torque")]
-    edges += [Edge("planner", p.name, "controller", p.name) for p in comps["planner"].outputs]
+    read = {port.name for port in comps["controller"].inputs}
+    edges += [Edge("planner", p.name, "controller", p.name) for p in comps["planner"].outputs if p.name in read]
     return Master(comps, edges, tick=0.01, total_ticks=ticks, observers=list(observers))
 
 
@@ -182,42 +190,21 @@ def master_loop(ticks: int, window: bool, record: bool = False) -> float:
 def lane_direct(ticks: int, lane: bool) -> float:
     """Thread CPU seconds per tick of plant, controller and windowed planner called directly
     (the controller through `step_values` on a tuple, or `step` on a dict)."""
-    plant, planner, ctrl = Plant(), Planner(True), LaneController()
-    u = {"delta": 0.0, "torque": 0.0}
-    ref = planner.step(0.0, {"x": 0.0, "y": 0.0})
-    window = tuple(ref[f"ref_{f}"] for f in FIELDS)
-    start = time.thread_time()
-    for k in range(1, ticks + 1):
-        t = k * 0.01
-        s = plant.step(t, u)
-        if k % 10 == 0:
-            ref = planner.step(t, {"x": s["x"], "y": s["y"]})
-            window = tuple(ref[f"ref_{f}"] for f in FIELDS)
-        if lane:
-            out = ctrl.step_values(t, (*s.values(), *window))
-            u = {"delta": out[0], "torque": out[1]}
-        else:
-            u = ctrl.step(t, {**s, **ref})
-    return (time.thread_time() - start) / ticks
+    ctrl = LaneController()
+    window: list = [None, ()]     # the planner's outputs last seen, and their window as a tuple
+
+    def on_tuple(t, s, ref):
+        if ref is not window[0]:      # a new window only when the planner stepped
+            window[:] = [ref, tuple(ref[f"ref_{f}"] for f in FIELDS)]
+        out = ctrl.step_values(t, (*s.values(), *window[1]))
+        return {"delta": out[0], "torque": out[1]}
+
+    return direct_loop(ticks, True, ctrl, on_tuple if lane else None, time.thread_time) / ticks
 
 
 def lane_master(ticks: int, lane: bool) -> float:
     """Thread CPU seconds per tick of the same three through the master (initialization excluded)."""
-    class HostedPlant(InprocComponent):
-        direct_feedthrough = False
-
-    here = "bench_master_overhead"
-    ctrl_class = "LaneController" if lane else "MappingController"
-    comps = {
-        "plant": HostedPlant(PythonComponentLaunch("plant", f"{here}:Plant", {}, 1)),
-        "controller": InprocComponent(PythonComponentLaunch("controller", f"{here}:{ctrl_class}", {}, 1)),
-        "planner": InprocComponent(PythonComponentLaunch("planner", f"{here}:Planner", {"window": True}, 10)),
-    }
-    edges = [Edge("plant", n, "controller", n) for n in STATES]
-    edges += [Edge("plant", n, "planner", n) for n in ("x", "y")]
-    edges += [Edge("controller", n, "plant", n) for n in ("delta", "torque")]
-    edges += [Edge("planner", f"ref_{f}", "controller", f"ref_{f}") for f in FIELDS]
-    master = Master(comps, edges, tick=0.01, total_ticks=ticks)
+    master = _master(ticks, True, ctrl_class="LaneController" if lane else "MappingController")
     on_lane = {p.name for p in master._plans if p.step_values is not None}
     if on_lane != ({"controller"} if lane else set()):
         raise SystemExit(f"the controller is not on the lane it should be on: {on_lane}")

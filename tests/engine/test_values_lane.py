@@ -102,20 +102,27 @@ EDGES = [Edge("plant", "y", "ctrl", "y", 0), Edge("ctrl", "u", "plant", "u", 0),
          Edge("ctrl", "w", "reader", "w", 0)]
 
 
+class StoreBits:
+    """Observer appending the store's bits (scalars, then arrays) after every tick to `rows`."""
+
+    def __init__(self, rows: list) -> None:
+        self.rows = rows
+
+    def begin(self, master) -> None:
+        pass
+
+    def after_tick(self, tick, t, values, arrays) -> None:
+        self.rows.append(struct.pack(f"{len(values)}d", *values) + arrays.tobytes())
+
+
 def _run(plant, trace, ticks=50):
     """The store after every tick (bits) of plant + feedback + reader."""
     rows = []
-
-    class Watch:
-        def begin(self, master):
-            pass
-
-        def after_tick(self, tick, t, values, arrays):
-            rows.append(struct.pack(f"{len(values)}d", *values) + arrays.tobytes())
+    watch = StoreBits(rows)
 
     reader = Reader()
     master = Master({"plant": plant, "ctrl": Feedback(), "reader": reader}, EDGES, 0.01, ticks,
-                    observers=[Watch()], trace=trace)
+                    observers=[watch], trace=trace)
     master.run()
     return master, rows, reader
 
@@ -244,16 +251,10 @@ def _hosted(class_name, module="tests.helpers.components", **parameters):
 def _run_tracker(track, trace=False, ticks=60):
     """(master, the store's bits after every tick) of feeder + tracker."""
     rows = []
-
-    class Watch:
-        def begin(self, master):
-            pass
-
-        def after_tick(self, tick, t, values, arrays):
-            rows.append(struct.pack(f"{len(values)}d", *values) + arrays.tobytes())
+    watch = StoreBits(rows)
 
     feed = InprocComponent(PythonComponentLaunch("feed", f"{__name__}:Feeder", {}, 1))
-    master = Master({"feed": feed, "track": track}, LANE_EDGES, 0.01, ticks, observers=[Watch()],
+    master = Master({"feed": feed, "track": track}, LANE_EDGES, 0.01, ticks, observers=[watch],
                     trace=trace)
     master.run()
     master.stop_all()
