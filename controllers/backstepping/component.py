@@ -142,6 +142,7 @@ class BacksteppingController(Component):
             self.params.m, self.params.me, self.params.Rw, self.kx + self.gx, self.limits.max_torque,
             self.limits.min_torque, self.limits.max_delta, self.limits.max_delta_rate, self.mu_min,
             self.mu_max, self.g_mu)
+        assert len(constants) == step_kernel.STEP_SIZE
         compiled = compiled_step()
         self._step, self._constants = ((compiled.step, compiled.constants(constants)) if compiled is not None
                                        else (step_kernel.step, constants))
@@ -158,22 +159,22 @@ class BacksteppingController(Component):
             return self._empty_window
         at_cg, preview = cg_and_preview(window, x, y, psi, self.gains.ls)
         try:
-            values = self._step(self._constants, dt, self.mu_hat, self.mu_hat_dot, self.steering.last,
+            result = self._step(self._constants, dt, self.mu_hat, self.mu_hat_dot, self.steering.last,
                                 psi, vx, vy, r, at_cg, preview)
         except step_kernel.SingularSteer as singular:
             raise singular_steer_error(singular) from None
-        # values: the outputs up to V2, then command, mu_hat_dot, kept, v0, v1, a1x0, a1x1
-        self.steering.last, mu_hat = values[0], values[9]
+        # result: the outputs up to V2, then command, mu_hat_dot, kept, v0, v1, a1x0, a1x1
+        self.steering.last, mu_hat = result[0], result[9]
         self.mu_hat = mu_hat
-        rate = values[17]
-        if values[18] == 0.0:       # the steer was limited, or vx < v_min: mu_hat is frozen
+        rate = result[17]
+        if result[18] == 0.0:       # the steer was limited, or vx < v_min: mu_hat is frozen
             rate = 0.0
         elif self.lateral.robust:
-            rate = self.lateral.robust_rate(vx, r, values[12], values[13], *values[19:], values[16], mu_hat,
+            rate = self.lateral.robust_rate(vx, r, result[12], result[13], *result[19:], result[16], mu_hat,
                                             self.g_mu)
         self.mu_hat_dot = rate
-        v3 = values[15] + ((self.mu_true - mu_hat) ** 2 / (2.0 * self.g_mu) if self.g_mu > 0.0 else 0.0)
-        return finite_values(OUTPUT_NAMES, values[:16] + (v3,), t)
+        v3 = result[15] + ((self.mu_true - mu_hat) ** 2 / (2.0 * self.g_mu) if self.g_mu > 0.0 else 0.0)
+        return finite_values(OUTPUT_NAMES, result[:16] + (v3,), t)
 
     @property
     def _empty_window(self) -> tuple[float, ...]:
