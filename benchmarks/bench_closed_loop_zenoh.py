@@ -7,14 +7,20 @@ alternating repetitions of five cases measured in the same run:
 - `inproc loop`: the master over the in-process hosts (`--transport inproc`),
   no observers: the in-process tick;
 - `zenoh loop`: the master over the Zenoh hosts (controller and planner in
-  their own processes), no observers: the Zenoh tick;
+  their own processes), no observers, every process of the chain on one CPU
+  as `cosim run` puts them (`--lockstep-cpu auto`, `cosim.engine.one_cpu`):
+  the Zenoh tick;
+- `zenoh loop, OS placement`: the same with the processes where the OS puts
+  them (`--lockstep-cpu off`);
 - `zenoh loop, planner inproc`: the same with the planner hosted in the
   master's process (`--place planner=inproc`), the controller in its own;
 - `cosim run zenoh`: `run_scenario(..., transport="zenoh")` as `cosim run`
   does it (recorder with its writer process, live publisher), ticks 1..N only
   (`RunResult.loop_time_s`), like the `zenoh loop` case;
 - `raw round trip`: a 100-byte put/subscribe round trip between this process
-  and an echo process (benchmarks/bench_zenoh.py's pair), median of a block.
+  and an echo process (benchmarks/bench_zenoh.py's pair), median of a block,
+  both processes on the chain's CPU; `raw round trip, OS placement`: another
+  pair, where the OS puts it.
 
 Wall-clock time per tick (the Zenoh tick waits on other processes), minimum
 and median over the repeats; then the CPU time per tick of the in-process loop
@@ -22,8 +28,9 @@ and of the Zenoh loop's processes together (master and components, every
 thread: Zenoh's own included), and of the raw round trip's two processes,
 with the same ratio on CPU time: a loaded machine disturbs CPU time much less
 than the wall clock (10 ms clock ticks: use runs of seconds). The target (DESIGN.md): Zenoh tick <= 1.25 x
-(in-process tick + one raw round trip); the planner's exchange every 10th tick
-makes the real floor 1.1 round trips per tick, printed too. Both transports
+(in-process tick + one raw round trip), each loop against the round trip placed
+as it is (one CPU, or the OS's placement); the planner's exchange every 10th
+tick makes the real floor 1.1 round trips per tick, printed too. Both transports
 must end in the same signal store, bit for bit (checked: `CHECK FAILED`, exit 1).
 
 Then, with `--breakdown` (the default), where the Zenoh tick goes
@@ -57,6 +64,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.bench_zenoh import RawPair  # noqa: E402
+from cosim.engine import one_cpu  # noqa: E402
 from benchmarks.common import (emit_results, load_average, min_and_median, table_row,  # noqa: E402
                                outputs_read)
 
@@ -66,8 +74,23 @@ RAW_BLOCK = 2000
 CPU_INPROC, CPU_ZENOH = "inproc loop, CPU", "zenoh loop, CPU of all processes"
 CPU_RAW = "raw round trip, CPU of both processes"
 PLANNER_IN_MASTER = "zenoh loop, planner inproc"
-CASES = ("inproc loop", "zenoh loop", PLANNER_IN_MASTER, "cosim run zenoh", "raw round trip", CPU_INPROC,
-         CPU_ZENOH, CPU_RAW)
+OS_LOOP, OS_RAW = "zenoh loop, OS placement", "raw round trip, OS placement"
+CASES = ("inproc loop", "zenoh loop", OS_LOOP, PLANNER_IN_MASTER, "cosim run zenoh", "raw round trip",
+         OS_RAW, CPU_INPROC, CPU_ZENOH, CPU_RAW)
+# each loop case against the round trip placed as it is
+FLOOR_OF = {"zenoh loop": "raw round trip", PLANNER_IN_MASTER: "raw round trip",
+            "cosim run zenoh": "raw round trip", OS_LOOP: OS_RAW}
+CHAIN_CPU = one_cpu.current_cpu() if one_cpu.supported() else None
+
+
+def on_chain_cpu(pin: bool = True):
+    """The lockstep chain's CPU for what starts and runs inside (`cosim run`'s default), or
+    nothing pinned (`pin` False, or a platform without CPU affinity)."""
+    import contextlib
+
+    if not pin or CHAIN_CPU is None:
+        return contextlib.nullcontext()
+    return one_cpu.PinnedChain(CHAIN_CPU)
 
 
 def prepared_run(seconds: float):
@@ -130,16 +153,17 @@ def inproc_loop(prepared) -> tuple[float, float, list[float]]:
 
 
 def zenoh_loop(prepared, hosts_class=None, endpoint: str | None = None,
-               in_master: tuple[str, ...] = ()) -> tuple[float, float, list[float]]:
+               in_master: tuple[str, ...] = (), pin: bool = True) -> tuple[float, float, list[float]]:
     """One run with the Python components in their own processes, but those named in `in_master`
-    (in-process hosts, as `--place NAME=inproc`): (wall seconds per tick, CPU seconds per tick of
-    the master and the component processes, final store)."""
+    (in-process hosts, as `--place NAME=inproc`), all on one CPU unless `pin` is False:
+    (wall seconds per tick, CPU seconds per tick of the master and the component processes,
+    final store)."""
     from cosim.transport.inproc import InprocComponent
     from cosim.transport.zenoh import ZenohComponents
 
     cls = hosts_class or ZenohComponents
     own = [launch for launch in prepared.launches if launch.name not in in_master]
-    with cls(own, run_id=f"bench{uuid.uuid4().hex[:8]}", endpoint=endpoint) as remote:
+    with on_chain_cpu(pin), cls(own, run_id=f"bench{uuid.uuid4().hex[:8]}", endpoint=endpoint) as remote:
         pids = [os.getpid(), *remote.pids.values()]
         hosts = dict(remote.components)
         hosts.update({l.name: InprocComponent(l) for l in prepared.launches if l.name in in_master})
@@ -162,35 +186,55 @@ def cosim_run_zenoh(prepared) -> float:
 def measure(seconds: float, repeats: int, hosts_class=None, endpoint_host: str = "127.0.0.1",
             echo_wrap: tuple[str, ...] = (), full_run: bool = True) -> dict[str, list[float]]:
     """The cases, alternated `repeats` times: label -> seconds per tick (or per round trip)."""
+    prepared = prepared_run(seconds)
+    samples: dict[str, list[float]] = {c: [] for c in CASES if full_run or c != "cosim run zenoh"}
+    with on_chain_cpu():
+        pinned_pair = RawPair(endpoint_host, echo_wrap).__enter__()  # its echo inherits the CPU
+    try:
+        with RawPair(endpoint_host, echo_wrap) as os_pair:
+            _alternate(prepared, repeats, samples, pinned_pair, os_pair, hosts_class, endpoint_host,
+                       full_run)
+    finally:
+        pinned_pair.__exit__(None, None, None)
+    return samples
+
+
+def _alternate(prepared, repeats: int, samples: dict[str, list[float]], pinned_pair, os_pair,
+               hosts_class, endpoint_host: str, full_run: bool) -> None:
+    """`repeats` rounds of every case, into `samples`."""
     import numpy as np
     from cosim.transport.zenoh import config
 
-    prepared = prepared_run(seconds)
-    samples: dict[str, list[float]] = {c: [] for c in CASES if full_run or c != "cosim run zenoh"}
-    with RawPair(endpoint_host, echo_wrap) as pair:
-        pair.measure(200)  # warm-up
-        for _ in range(repeats):
-            tick, cpu, inproc_store = inproc_loop(prepared)
-            samples["inproc loop"].append(tick)
-            samples[CPU_INPROC].append(cpu)
-            endpoint = None if hosts_class is None else config.free_tcp_endpoint(endpoint_host)
-            tick, cpu, zenoh_store = zenoh_loop(prepared, hosts_class, endpoint)
-            samples["zenoh loop"].append(tick)
-            samples[CPU_ZENOH].append(cpu)
-            tick, _, mixed_store = zenoh_loop(prepared, hosts_class, endpoint and
-                                              config.free_tcp_endpoint(endpoint_host), ("planner",))
-            samples[PLANNER_IN_MASTER].append(tick)
-            for store, what in ((zenoh_store, "zenoh"), (mixed_store, "zenoh with the planner in the master")):
-                if store != inproc_store:
-                    differ = sum(a != b for a, b in zip(store, inproc_store))
-                    raise SystemExit(f"CHECK FAILED: {what} and inproc signal stores differ ({differ} values)")
-            if full_run:
-                samples["cosim run zenoh"].append(cosim_run_zenoh(prepared))
-            pids = [os.getpid(), pair.child.pid]
-            cpu = _cpu_seconds(pids)
-            samples["raw round trip"].append(float(np.median(pair.measure(RAW_BLOCK))))
-            samples[CPU_RAW].append((_cpu_seconds(pids) - cpu) / RAW_BLOCK)
-    return samples
+    with on_chain_cpu():
+        pinned_pair.measure(200)  # warm-up
+    os_pair.measure(200)
+    for _ in range(repeats):
+        tick, cpu, inproc_store = inproc_loop(prepared)
+        samples["inproc loop"].append(tick)
+        samples[CPU_INPROC].append(cpu)
+        endpoint = None if hosts_class is None else config.free_tcp_endpoint(endpoint_host)
+        tick, cpu, zenoh_store = zenoh_loop(prepared, hosts_class, endpoint)
+        samples["zenoh loop"].append(tick)
+        samples[CPU_ZENOH].append(cpu)
+        tick, _, os_store = zenoh_loop(prepared, hosts_class, endpoint and
+                                       config.free_tcp_endpoint(endpoint_host), pin=False)
+        samples[OS_LOOP].append(tick)
+        tick, _, mixed_store = zenoh_loop(prepared, hosts_class, endpoint and
+                                          config.free_tcp_endpoint(endpoint_host), ("planner",))
+        samples[PLANNER_IN_MASTER].append(tick)
+        for store, what in ((zenoh_store, "zenoh"), (os_store, "zenoh, OS placement"),
+                            (mixed_store, "zenoh with the planner in the master")):
+            if store != inproc_store:
+                differ = sum(a != b for a, b in zip(store, inproc_store))
+                raise SystemExit(f"CHECK FAILED: {what} and inproc signal stores differ ({differ} values)")
+        if full_run:
+            samples["cosim run zenoh"].append(cosim_run_zenoh(prepared))
+        pids = [os.getpid(), pinned_pair.child.pid]
+        cpu = _cpu_seconds(pids)
+        with on_chain_cpu():
+            samples["raw round trip"].append(float(np.median(pinned_pair.measure(RAW_BLOCK))))
+        samples[CPU_RAW].append((_cpu_seconds(pids) - cpu) / RAW_BLOCK)
+        samples[OS_RAW].append(float(np.median(os_pair.measure(RAW_BLOCK))))
 
 
 def summarize(samples: dict[str, list[float]], where: str) -> dict[str, float]:
@@ -202,15 +246,19 @@ def summarize(samples: dict[str, list[float]], where: str) -> dict[str, float]:
         figures[f"{label} min"], figures[f"{label} median"] = low * 1e6, mid * 1e6
         print(f"{label:<34}{low * 1e6:>10.1f}{mid * 1e6:>11.1f}")
     for stat in ("min", "median"):
-        floor = figures[f"inproc loop {stat}"] + figures[f"raw round trip {stat}"]
-        floor_11 = figures[f"inproc loop {stat}"] + 1.1 * figures[f"raw round trip {stat}"]
-        for case in ("zenoh loop", PLANNER_IN_MASTER, "cosim run zenoh"):
-            if f"{case} {stat}" in figures:
-                ratio = figures[f"{case} {stat}"] / floor
-                figures[f"ratio {case} {stat}"] = ratio
-                print(f"{where}, {stat}s: {case} / (inproc tick + 1 round trip = {floor:.1f} us) = "
-                      f"{ratio:.2f}  (target <= {TARGET}: {'met' if ratio <= TARGET else 'not met'}); "
-                      f"against 1.1 round trips ({floor_11:.1f} us): {figures[f'{case} {stat}'] / floor_11:.2f}")
+        for case, raw in FLOOR_OF.items():
+            if f"{case} {stat}" not in figures:
+                continue
+            floor = figures[f"inproc loop {stat}"] + figures[f"{raw} {stat}"]
+            floor_11 = figures[f"inproc loop {stat}"] + 1.1 * figures[f"{raw} {stat}"]
+            ratio = figures[f"ratio {case} {stat}"] = figures[f"{case} {stat}"] / floor
+            print(f"{where}, {stat}s: {case} / (inproc tick + 1 {raw} = {floor:.1f} us) = "
+                  f"{ratio:.2f}  (target <= {TARGET}: {'met' if ratio <= TARGET else 'not met'}); "
+                  f"against 1.1 round trips ({floor_11:.1f} us): {figures[f'{case} {stat}'] / floor_11:.2f}")
+        if f"zenoh loop {stat}" in figures:
+            speedup = figures[f"speed-up of one CPU {stat}"] = (figures[f"{OS_LOOP} {stat}"]
+                                                                / figures[f"zenoh loop {stat}"])
+            print(f"{where}, {stat}s: zenoh loop, OS placement / on one CPU = {speedup:.2f}")
     if CPU_RAW in samples:
         floor = figures[f"{CPU_INPROC} median"] + figures[f"{CPU_RAW} median"]
         ratio = figures["ratio cpu median"] = figures[f"{CPU_ZENOH} median"] / floor
@@ -286,7 +334,7 @@ def main() -> None:
     if args.breakdown:
         from benchmarks import zenoh_breakdown
 
-        with RawPair() as pair:
+        with on_chain_cpu(), RawPair() as pair:  # on the chain's CPU, as the headline loop
             pair.measure(200)  # warm-up
             figures["breakdown"] = zenoh_breakdown.report(prepared_run(args.seconds), _master, pair,
                                                           RAW_BLOCK)
@@ -305,16 +353,23 @@ def main() -> None:
 
 def table_rows(where: str, f: dict[str, float]) -> list[dict]:
     """The performance-table rows of one setting (loopback or netns), from the medians."""
-    floor = f"inproc {f['inproc loop median']:.0f} + round trip {f['raw round trip median']:.0f} µs"
     rows = []
-    for case, what in (("zenoh loop", "master loop"), ("cosim run zenoh", "`cosim run`, recorder on"),
-                       (PLANNER_IN_MASTER, "master loop, planner in the master's process as with "
-                                           "`--place planner=inproc`")):
+    for case, what in (("zenoh loop", "master loop, one CPU"),
+                       ("cosim run zenoh", "`cosim run`, recorder on, one CPU"),
+                       (PLANNER_IN_MASTER, "master loop, one CPU, planner in the master's process as "
+                                           "with `--place planner=inproc`"),
+                       (OS_LOOP, "master loop, `--lockstep-cpu off`")):
         if f"ratio {case} median" in f:
-            ratio = f[f"ratio {case} median"]
-            rows.append(table_row(f"Satory loop over Zenoh ({what}, {where}) / (in-process tick + 1 raw "
-                                  f"round trip)", f"{f[f'{case} median']:.0f} µs/tick vs {floor}: {ratio:.2f}",
+            ratio, raw = f[f"ratio {case} median"], FLOOR_OF[case]
+            placed = "OS-placed" if raw == OS_RAW else "one-CPU"
+            floor = f"inproc {f['inproc loop median']:.0f} + round trip {f[f'{raw} median']:.0f} µs"
+            rows.append(table_row(f"Satory loop over Zenoh ({what}, {where}) / (in-process tick + 1 "
+                                  f"{placed} raw round trip)",
+                                  f"{f[f'{case} median']:.0f} µs/tick vs {floor}: {ratio:.2f}",
                                   f"<= {TARGET}", ratio <= TARGET))
+    if "speed-up of one CPU median" in f:
+        rows.append(table_row(f"Satory loop over Zenoh ({where}): OS placement / one CPU",
+                              f"{f['speed-up of one CPU median']:.2f}x", "-", None))
     return rows
 
 

@@ -174,7 +174,7 @@ def validate(scenario: ScenarioSource, *, set: Overrides = None) -> dict[str, An
 def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
         transport: str = "inproc", out: str | Path | None = None,
         progress: bool = False, place: Sequence[str] = (),
-        deploy: str | Path | None = None) -> Run:
+        deploy: str | Path | None = None, lockstep_cpu: str | int = "auto") -> Run:
     """Run a scenario to its run folder, compute its metrics, and return its results.
 
     Args:
@@ -187,6 +187,8 @@ def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
             scenario's `host:`; WORKER `inproc` hosts a Python component in this process);
             they need transport "zenoh".
         deploy: a deployment settings YAML (workers' endpoints, TLS), as `cosim run --deploy`.
+        lockstep_cpu: "auto", "off" or a CPU number, as `cosim run --lockstep-cpu`: when the
+            run starts processes, this thread and they run on that one CPU until it ends.
     Returns:
         The Run. A component failing mid-run does not raise: `status` is then "failed",
         `error` says why, and everything up to the last complete tick is in the folder.
@@ -198,7 +200,10 @@ def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
     from cosim.execution.run import check_run_options, run_scenario
     from cosim.results.folders import stamped_folder
 
+    from cosim.engine.one_cpu import parse_setting
+
     check_run_options(transport, None)
+    parse_setting(lockstep_cpu, "lockstep_cpu")
     if isinstance(place, str):      # one item given bare, not a list of one
         place = [place]
     settings = None
@@ -208,7 +213,7 @@ def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
     loaded = load_scenario(scenario, set=set)
     folder = Path(out) if out is not None else stamped_folder("runs", loaded.name)
     result = run_scenario(loaded, folder, transport=transport, progress=progress, place=list(place),
-                          deploy=settings)
+                          deploy=settings, lockstep_cpu=lockstep_cpu)
     if result.ticks > 0:
         analyse_run_folder(result, figures=False)
     return Run(result.out_dir)

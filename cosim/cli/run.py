@@ -20,6 +20,7 @@ import typer
 
 from cosim.cli import interrupts
 from cosim.cli.common import STRICT_HELP, print_warning, user_error_exit
+from cosim.engine import one_cpu
 from cosim.errors import UserError
 from cosim.execution.finish import analyse_run_folder  # shared with cosim.run (the Python API)
 from cosim.scenario.shipped import resolve_scenario
@@ -76,6 +77,10 @@ def run(
                                    help="a parent process that completes the run folder if "
                                         "the master dies or hangs in native code"),
     strict: bool = typer.Option(False, "--strict", help=STRICT_HELP),
+    lockstep_cpu: str = typer.Option(
+        "auto", "--lockstep-cpu",
+        help="auto | off | CPU: the master and the processes it starts on one CPU (auto: the one "
+             "it starts on; faster in lockstep), off: wherever the OS puts them"),
 ) -> None:
     """Run a scenario and write its run folder.
 
@@ -99,6 +104,7 @@ def run(
             from cosim.cli.foxglove import require_foxglove
             require_foxglove("--mcap")
         limits = RunLimits(max_ticks, allow_large)
+        chain_setting = one_cpu.parse_setting(lockstep_cpu)
         out_dir = check_out_option(out, force)
     except UserError as error:
         raise user_error_exit(error) from None
@@ -111,15 +117,17 @@ def run(
             raise typer.Exit(status)
         clock.after_fork(cpu_before_fork)  # the master's CPU time counts the parsing too
     early = None
+    chain = one_cpu.PinnedChain(chain_setting)
     try:
         if prestart and transport == "zenoh" and not (place or listen or connect or deploy):
             from cosim.execution.prestart import prestart_components
 
+            chain.__enter__()  # before the processes start: they inherit its CPU
             early = prestart_components(scenario_file)  # their start overlaps the scenario's load
         result = _load_and_run(scenario_file, set_, out_dir, (deploy, listen, connect), clock,
                                (foxglove, foxglove_host), transport=transport, realtime=realtime,
                                place=place, deadline_s=deadline, prestart=early, limits=limits,
-                               fmu_log=fmu_log, strict=strict)
+                               fmu_log=fmu_log, strict=strict, lockstep_cpu=chain_setting)
     except UserError as error:
         raise user_error_exit(error) from None
     except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
@@ -133,6 +141,7 @@ def run(
     finally:
         if early is not None:
             early.close()
+        chain.__exit__(None, None, None)
     _finish_run(result, figures, mcap)
 
 

@@ -29,6 +29,7 @@ from cosim.transport.launch import PythonComponentLaunch
 from cosim.execution.abort import locate_parameter_problem, start_failure_text, write_start_failure
 from cosim.execution.limits import RunLimits, check_formats, check_recorded_size, check_ticks
 from cosim.execution.prepare import PreparedRun, component_names, plan_fmu, plan_fmus, plan_launches
+from cosim.engine import one_cpu
 from cosim.engine.startup import StartupClock
 
 if TYPE_CHECKING:  # loaded when needed: the Zenoh processes start before numpy/fmpy load
@@ -85,7 +86,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  limits: RunLimits | None = None,
                  fmu_log: bool = False, strict: bool = False,
                  on_warning: Callable[[str], None] | None = None,
-                 before_tick0: Callable[[], None] | None = None) -> RunResult:
+                 before_tick0: Callable[[], None] | None = None,
+                 lockstep_cpu: str | int = "auto") -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -120,6 +122,9 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         on_warning: prints one interface-gap warning (once each, before tick 0).
         before_tick0: called once everything is hosted, just before the master starts
             (`cosim run` raises there a Ctrl-C that a library swallowed during start-up).
+        lockstep_cpu: "auto", "off" or a CPU number: where the master and the component
+            processes it starts run when there are any (`cosim.engine.one_cpu`); the
+            manifest's `lockstep_cpu` says which CPU, null for none.
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -127,6 +132,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         UserError for anything wrong before tick 0 (scenario, FMU, wiring).
     """
     check_run_options(transport, realtime)
+    one_cpu.parse_setting(lockstep_cpu, "lockstep_cpu")
     limits = limits or RunLimits()
     check_ticks(scenario, limits)  # before the run folder: a refused run leaves nothing
     check_formats(scenario)
@@ -140,6 +146,9 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         launches = plan_launches(scenario, import_classes=transport != "zenoh")
         launches += _placed_fmu_launches(scenario, placement)
         remote_launches = [launch for launch in launches if launch.name not in in_master]
+        chain_setting = lockstep_cpu if _starts_processes(scenario, transport, remote_launches,
+                                                          placement, prestart) else one_cpu.OFF
+        chain_cpu = stack.enter_context(one_cpu.PinnedChain(chain_setting))
         out = _make_run_folder(Path(out_dir))
         run_id = prestart.run_id if prestart is not None else uuid.uuid4().hex[:12]
         page = supervisor.current()
@@ -158,7 +167,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                                    placement, deploy, limits)
             options = _Options(fmu_hosting.start_time(scenario, all_fmus),
                                fmu_hosting.deadlines(scenario, prepared.names, deadline_s),
-                               fmu_log, page, tuple(observers))
+                               fmu_log, page, tuple(observers), chain_cpu)
             hosted = _host_components(prepared, remote, in_master, clock, out, options)
             _check_gaps(scenario, hosted, all_fmus, strict, on_warning)
             if before_tick0 is not None:
@@ -185,6 +194,19 @@ class _Options:
     fmu_log: bool
     page: Any  # cosim.execution.supervisor.ControlPage, or None (not supervised)
     observers: tuple[Any, ...] = ()  # more master observers, after the recorder
+    lockstep_cpu: int | None = None  # the CPU of the master and its processes, None: any
+
+
+def _starts_processes(scenario: Any, transport: str, remote_launches: list[Any],
+                      placement: dict[str, str], prestart: Any) -> bool:
+    """Whether the lockstep chain has processes on this machine besides the master's:
+    component processes it spawns (zenoh, not on a worker) or isolated FMUs."""
+    if prestart is not None:
+        return True
+    if transport == "zenoh" and any(launch.name not in placement for launch in remote_launches):
+        return True
+    return any(getattr(spec, "isolate", False) and name not in placement
+               for name, spec in scenario.fmu_components().items())
 
 
 def _make_run_folder(out: Path) -> Path:
@@ -387,6 +409,7 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
                         {n: c.period_ticks for n, c in hosted.items()}, prepared.limits)
     manifest = base_manifest(scenario, prepared, hosted, transport, run_id, master.order)
     manifest["start_time"] = master.t0
+    manifest["lockstep_cpu"] = options.lockstep_cpu
     local = {n for n, c in hosted.items() if fmu_hosting.is_local_call(c)}
     manifest["supervision"] = supervisor.supervision_entry(master.order, local, options.deadlines)
     live = None

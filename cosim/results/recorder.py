@@ -54,6 +54,7 @@ from typing import Any
 
 import numpy as np
 
+from cosim.engine import one_cpu
 from cosim.errors import RunFolderError
 from cosim.results.csv_writer import (DATA_OFFSET, SPOOL_SUFFIX, SpoolError, SpoolHeader,
                                       rebuild_csv, write_header)
@@ -439,6 +440,7 @@ class Recorder:
             self.writer_problem = f"CSV writer process not started: {exc}"
             return
         self.writer_pid = self._writer.pid
+        one_cpu.release(self.writer_pid)  # the writer works beside the lockstep chain, not on its CPU
         if self.on_writer is not None:
             self.on_writer(self.writer_pid)
 

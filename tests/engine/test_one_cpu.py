@@ -1,0 +1,162 @@
+"""The lockstep chain on one CPU (cosim.engine.one_cpu): which threads and processes it pins,
+what it restores, and that a run over Zenoh puts its component processes on the CPU the
+manifest names (and leaves them alone with `lockstep_cpu="off"`)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+from collections.abc import Mapping
+
+import pytest
+
+import cosim
+from cosim.component import Component, Port, Value
+from cosim.engine import one_cpu
+from cosim.errors import UserError
+
+ALLOWED = set(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else set()
+needs_two_cpus = pytest.mark.skipif(len(ALLOWED) < 2 or not one_cpu.supported(),
+                                    reason="needs Linux and two CPUs this process may use")
+
+
+class CpuReporter(Component):
+    """Outputs how many CPUs its thread may run on, and the lowest of them."""
+
+    inputs = (Port("x"),)
+    outputs = (Port("cpus"), Port("first_cpu"))
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        cpus = os.sched_getaffinity(0)
+        return {"cpus": float(len(cpus)), "first_cpu": float(min(cpus))}
+
+
+SCENARIO = {"name": "cpu_report", "duration": 0.05, "tick": 0.01,
+            "components": {"probe": {"python": "tests.engine.test_one_cpu:CpuReporter"}},
+            "sources": {"u": {"kind": "constant", "value": 1.0}},
+            "connections": [{"from": "u.value", "to": "probe.x"}]}
+
+
+@pytest.mark.parametrize("value, expected", [("auto", "auto"), ("OFF", "off"), ("1", 1), (0, 0),
+                                             (" 3 ", 3)])
+def test_settings_are_auto_off_or_a_cpu_number(value, expected):
+    assert one_cpu.parse_setting(value) == expected
+
+
+@pytest.mark.parametrize("value, problem", [("fast", "expected auto, off or a CPU number, got 'fast'"),
+                                            ("-1", "a CPU number is 0 or more, got -1"),
+                                            (True, "expected auto, off or a CPU number, got True")])
+def test_a_bad_setting_names_the_option_and_the_value(value, problem):
+    with pytest.raises(UserError) as caught:
+        one_cpu.parse_setting(value, "--lockstep-cpu")
+    assert str(caught.value) == f"--lockstep-cpu: {problem}"
+
+
+def test_off_pins_nothing():
+    before = os.sched_getaffinity(0)
+    with one_cpu.PinnedChain("off") as cpu:
+        assert cpu is None and one_cpu.pinned_cpu() is None
+        assert os.sched_getaffinity(0) == before
+
+
+@needs_two_cpus
+def test_auto_pins_this_thread_and_what_it_starts_then_restores_both():
+    seen: dict[str, set[int]] = {}
+    release = threading.Event()
+
+    def born_pinned() -> None:
+        seen["inside"] = set(os.sched_getaffinity(0))
+        release.wait(10)
+        seen["after"] = set(os.sched_getaffinity(0))
+
+    with one_cpu.PinnedChain("auto") as cpu:
+        assert cpu in ALLOWED and one_cpu.pinned_cpu() == cpu
+        assert os.sched_getaffinity(0) == {cpu}
+        thread = threading.Thread(target=born_pinned)
+        thread.start()
+        while "inside" not in seen:
+            threading.Event().wait(0.001)
+    release.set()
+    thread.join(10)
+    assert seen["inside"] == {cpu}
+    assert os.sched_getaffinity(0) == ALLOWED
+    assert seen["after"] == ALLOWED           # born pinned, given every CPU back at the end
+    assert one_cpu.pinned_cpu() is None
+
+
+@needs_two_cpus
+def test_other_threads_of_the_process_keep_their_cpus():
+    ready, done = threading.Event(), threading.Event()
+    seen: list[set[int]] = []
+
+    def bystander() -> None:
+        ready.set()
+        done.wait(10)
+        seen.append(set(os.sched_getaffinity(0)))
+
+    thread = threading.Thread(target=bystander)
+    thread.start()
+    ready.wait(10)
+    with one_cpu.PinnedChain("auto"):
+        done.set()
+        thread.join(10)
+    assert seen == [ALLOWED]
+
+
+@needs_two_cpus
+def test_an_explicit_cpu_is_used_and_one_not_allowed_is_refused():
+    cpu = max(ALLOWED)
+    with one_cpu.PinnedChain(cpu) as chosen:
+        assert chosen == cpu and os.sched_getaffinity(0) == {cpu}
+    with pytest.raises(UserError, match=r"lockstep CPU 4096: this process may run only on CPU "):
+        one_cpu.PinnedChain(4096).__enter__()
+    assert one_cpu.pinned_cpu() is None and os.sched_getaffinity(0) == ALLOWED
+
+
+@needs_two_cpus
+def test_a_nested_chain_shares_the_outer_cpu_and_leaves_the_restore_to_it():
+    with one_cpu.PinnedChain("auto") as outer:
+        with one_cpu.PinnedChain("auto") as inner:
+            assert inner == outer
+        assert os.sched_getaffinity(0) == {outer}
+    assert os.sched_getaffinity(0) == ALLOWED
+
+
+@needs_two_cpus
+def test_a_released_process_gets_the_other_cpus():
+    script = "import os, sys; sys.stdin.readline(); print(sorted(os.sched_getaffinity(0)))"
+    with one_cpu.PinnedChain("auto") as cpu:
+        child = subprocess.Popen([sys.executable, "-c", script], stdin=subprocess.PIPE,
+                                 stdout=subprocess.PIPE, text=True)
+        one_cpu.release(child.pid)
+        out, _ = child.communicate("go\n", timeout=30)
+    assert json.loads(out) == sorted(ALLOWED - {cpu})
+
+
+@needs_two_cpus
+def test_a_zenoh_run_puts_its_component_processes_on_the_manifests_cpu(tmp_path):
+    pinned = cosim.run(SCENARIO, transport="zenoh", out=tmp_path / "auto")
+    manifest = json.loads((tmp_path / "auto" / "manifest.json").read_text())
+    cpu = manifest["lockstep_cpu"]
+    assert pinned.status == "ok" and cpu in ALLOWED
+    assert set(pinned.signals["probe.cpus"]) == {1.0}
+    assert set(pinned.signals["probe.first_cpu"]) == {float(cpu)}
+    assert os.sched_getaffinity(0) == ALLOWED    # this process has its CPUs back
+
+    free = cosim.run(SCENARIO, transport="zenoh", out=tmp_path / "off", lockstep_cpu="off")
+    assert json.loads((tmp_path / "off" / "manifest.json").read_text())["lockstep_cpu"] is None
+    assert set(free.signals["probe.cpus"]) == {float(len(ALLOWED))}
+
+
+def test_an_in_process_run_pins_nothing(tmp_path):
+    cosim.run(SCENARIO, transport="inproc", out=tmp_path / "inproc", lockstep_cpu=0)
+    assert json.loads((tmp_path / "inproc" / "manifest.json").read_text())["lockstep_cpu"] is None
+
+
+def test_the_api_refuses_a_bad_setting_before_running(tmp_path):
+    with pytest.raises(UserError, match=r"^lockstep_cpu: expected auto, off or a CPU number, got 'x'$"):
+        cosim.run(SCENARIO, transport="zenoh", out=tmp_path / "bad", lockstep_cpu="x")
+    assert not (tmp_path / "bad").exists()
