@@ -149,6 +149,38 @@ def test_scalar_only_layout_rejects_nan_and_missing_by_name():
                                                 {"u": 1.0, "v": float("nan")}))["v"])
 
 
+def test_the_values_lane_is_the_same_message_in_declared_order():
+    rng = np.random.default_rng(13)
+    flat = random_finite(rng, 7)
+    by_name = {"a": flat[0], "b": _frozen(flat[1:4]), "c": flat[4], "d": _frozen(flat[5:7])}
+    in_order = (by_name["a"], by_name["b"], by_name["c"], by_name["d"])
+    named, ordered = Layout(PORTS), Layout(PORTS)
+    for tick in (1, 2):  # the second time both hold b and d
+        message = ordered.encode_values(Kind.STEP, tick, tick, 0.01, in_order)
+        assert message == named.encode(Kind.STEP, tick, tick, 0.01, by_name)
+    receiver = Layout(PORTS)
+    first = receiver.decode_values(Layout(PORTS).encode_values(Kind.STEP, 1, 1, 0.0, in_order))
+    assert [type(v) for v in first] == [float, np.ndarray, float, np.ndarray]
+    assert np.concatenate([[first[0]], first[1], [first[2]], first[3]]).tobytes() == flat.tobytes()
+    scalars = Layout((Port("u"), Port("v")))
+    assert scalars.decode_values(scalars.encode_values(Kind.OUTPUTS, 1, 1, 0.0, (-0.0, 5e-324))) \
+        == (-0.0, 5e-324)
+
+
+@pytest.mark.parametrize("ports, values, message", [
+    ((Port("u"), Port("v")), (1.0,), "returned 1 values for 2 outputs ['u', 'v']"),
+    ((Port("u"), Port("v")), (1.0, float("nan")), "output 'v' is non-finite: nan"),
+    ((Port("u"), Port("v")), (1.0, "x"), "output 'v' is not a number: 'x'"),
+    ((Port("u"), Port("v")), 3.0, "returned float, expected a sequence of 2 values"),
+    (PORTS, (1.0, [1, 2], 2.0, [0, 0]), "output 'b' has shape (2,), expected (3,)"),
+    (PORTS, (1.0, [1, 2, 3]), "returned 2 values for 4 outputs ['a', 'b', 'c', 'd']"),
+])
+def test_bad_values_on_the_lane_are_named(ports, values, message):
+    with pytest.raises(CodecError) as error:
+        Layout(ports).encode_values(Kind.OUTPUTS, 1, 4, 0.04, values, finite=True)
+    assert str(error.value) == message
+
+
 def test_decode_rejects_a_message_of_the_wrong_size():
     layout = Layout(PORTS)
     mask = bytes([1, 1, 0, 0, 0, 0, 0, 0])

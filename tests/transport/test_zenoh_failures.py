@@ -3,6 +3,7 @@ start-up) naming the component, the tick and the cause; no process left."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import threading
@@ -145,3 +146,28 @@ def test_bad_run_id_and_duplicate_names():
         ZenohComponents([], "a/b")
     with pytest.raises(UserError, match="unique"):
         ZenohComponents([launch("x", "Echo"), launch("x", "Echo")], "dup")
+
+
+@pytest.mark.parametrize("bad, cause", [(float("nan"), "output 'energy' is non-finite: nan"),
+                                        (float("-inf"), "output 'energy' is non-finite: -inf")])
+def test_a_bad_output_of_step_values_is_named_as_in_process(bad, cause):
+    from cosim.engine.master import Master
+
+    spec = launch("track", "Tracker", bad=bad, bad_at=0.035)
+    failures = []
+    for hosts in (lambda: contextlib.nullcontext({"track": InprocComponent(spec)}),
+                  lambda: _components(ZenohComponents([spec], f"t-lane-{os.getpid()}"))):
+        with hosts() as hosted, pytest.raises(ComponentFailure) as caught:
+            master = Master(hosted, [], TICK, 10, 0.0, [])
+            assert [p.name for p in master._plans if p.step_values is not None] == ["track"]
+            master.run()
+        failures.append(caught.value)
+    inproc, zenoh = failures
+    assert (zenoh.component, zenoh.tick, zenoh.cause) == ("track", 4, cause)
+    assert str(zenoh) == str(inproc)
+
+
+@contextlib.contextmanager
+def _components(host: ZenohComponents):
+    with host:
+        yield host.components

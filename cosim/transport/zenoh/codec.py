@@ -56,13 +56,12 @@ class Layout:
         self.scalar_only = all(p.size == 1 for p in self.ports)
         self._struct = struct.Struct(f"<qqqd{self.size}d")
         self._pick = picker(self.names)
-        scalar_names = tuple(p.name for p in self.ports if p.size == 1)
-        self._scalar_names = scalar_names
-        self._pick_scalars = picker(scalar_names)
+        self._scalar_at = tuple(i for i, p in enumerate(self.ports) if p.size == 1)  # declared positions
+        self._array_at = tuple(i for i, p in enumerate(self.ports) if p.size > 1)
+        self._scalars_of = picker(self._scalar_at)  # the scalars of a declared-order sequence
         self._arrays = tuple((p.name, p.size) for p in self.ports if p.size > 1)
-        self._pick_arrays = picker(tuple(name for name, _ in self._arrays))
         self._mask_size = -(-len(self._arrays) // 8) * 8
-        self._scalars = struct.Struct(f"<{len(scalar_names)}d")
+        self._scalars = struct.Struct(f"<{len(self._scalar_at)}d")
         self._values_at = HEADER.size + self._mask_size  # where the scalars start
         self._arrays_at = self._values_at + self._scalars.size
         self._sent: list[tuple[Any, bytes] | None] = []  # per array port: (object, bytes)
@@ -84,34 +83,63 @@ class Layout:
             values: one value per port (float for size 1, array of the port's size).
             finite: also reject NaN and infinite values.
         """
+        try:
+            picked = self._pick(values)
+        except (KeyError, TypeError):
+            raise CodecError(self.problem(values) or "not packable") from None
+        return self.encode_values(kind, seq, tick, t, picked, finite, values)
+
+    def encode_values(self, kind: int, seq: int, tick: int, t: float, values: Sequence[Value],
+                      finite: bool = False, named: Mapping[str, Value] | None = None) -> bytes:
+        """`encode` of the port values given in declared order (the values lane).
+
+        Args:
+            kind, seq, tick, t, finite: as for `encode`.
+            values: one value per port, in declared order.
+            named: the same values by name if the caller has them (for error messages).
+        """
         if self.scalar_only:
             try:
-                floats = self._pick(values)
-                message = self._struct.pack(kind, seq, tick, t, *floats)
-            except (KeyError, TypeError, struct.error):
-                raise CodecError(self.problem(values) or "not packable") from None
-            if finite and not all(map(math.isfinite, floats)):
-                raise CodecError(self.problem(values))
+                message = self._struct.pack(kind, seq, tick, t, *values)
+            except (TypeError, struct.error):
+                raise CodecError(self._values_problem(values, named) or "not packable") from None
+            if finite and not all(map(math.isfinite, values)):
+                raise CodecError(self._values_problem(values, named))
             return message
+        if len(values) != len(self.ports):
+            raise CodecError(self._values_problem(values, named))
+        floats = self._scalars_of(values)
         try:
-            floats = self._pick_scalars(values)
             scalars = self._scalars.pack(*floats)
-            arrays = self._pick_arrays(values)
-        except (KeyError, TypeError, struct.error):
-            raise CodecError(self.problem(values) or "not packable") from None
+        except (TypeError, struct.error):
+            raise CodecError(self._values_problem(values, named) or "not packable") from None
         if finite and not all(map(math.isfinite, floats)):
-            raise CodecError(self.problem(values))
+            raise CodecError(self._values_problem(values, named))
         mask = bytearray(self._mask_size)
-        sent = [self._changed(index, value, values) for index, value in enumerate(arrays)]
+        sent = [self._changed(index, values[at], values, named)
+                for index, at in enumerate(self._array_at)]
         for index, data in enumerate(sent):
             if data:
                 mask[index] = _SENT
         body = b"".join(filter(None, sent))
         if finite and body and not np.isfinite(np.frombuffer(body)).all():  # one test for all
-            raise CodecError(self.problem(values))
+            raise CodecError(self._values_problem(values, named))
         return b"".join([HEADER.pack(kind, seq, tick, t), mask, scalars, body])
 
-    def _changed(self, index: int, value: Any, values: Mapping[str, Value]) -> bytes | None:
+    def _values_problem(self, values: Sequence[Value], named: Mapping[str, Value] | None) -> str:
+        """`problem` of values given in declared order."""
+        if named is not None:
+            return self.problem(named)
+        try:
+            count = len(values)
+        except TypeError:
+            return f"returned {type(values).__name__}, expected a sequence of {len(self.ports)} values"
+        if count != len(self.ports):
+            return f"returned {count} values for {len(self.ports)} {self.role}s {list(self.names)}"
+        return self.problem(dict(zip(self.names, values)))
+
+    def _changed(self, index: int, value: Any, values: Sequence[Value],
+                 named: Mapping[str, Value] | None) -> bytes | None:
         """The bytes of array port `index` if they differ from those last sent, else None."""
         last = self._sent[index]
         frozen = is_frozen(value)
@@ -122,7 +150,7 @@ class Layout:
         except (TypeError, ValueError):
             array = None
         if array is None or array.shape != (self._arrays[index][1],):
-            raise CodecError(self.problem(values) or "not packable")
+            raise CodecError(self._values_problem(values, named) or "not packable")
         data = array.tobytes()
         self._sent[index] = (value if frozen else None, data)
         if last is not None and data == last[1]:
@@ -131,16 +159,21 @@ class Layout:
 
     def decode(self, data: bytes) -> dict[str, Value]:
         """The port values of a message made by `encode` (floats, read-only arrays)."""
+        return dict(zip(self.names, self.decode_values(data)))
+
+    def decode_values(self, data: bytes) -> tuple[Value, ...]:
+        """The port values of a message, in declared order (the values lane)."""
         if self.scalar_only:
             if len(data) != self._struct.size:
                 raise CodecError(f"message of {len(data)} bytes, expected {self._struct.size} "
                                  f"for ports {list(self.names)}")
-            return dict(zip(self.names, self._struct.unpack(data)[4:]))
+            return self._struct.unpack(data)[4:]
         if len(data) < self._arrays_at:
             raise CodecError(f"message of {len(data)} bytes, shorter than the "
                              f"{self._arrays_at} of ports {list(self.names)} without arrays")
-        out: dict[str, Value] = dict(zip(self._scalar_names,
-                                         self._scalars.unpack_from(data, self._values_at)))
+        out: list[Value] = [0.0] * len(self.ports)
+        for at, value in zip(self._scalar_at, self._scalars.unpack_from(data, self._values_at)):
+            out[at] = value
         at, kept = self._arrays_at, self._kept
         for index, (name, size) in enumerate(self._arrays):
             if data[HEADER.size + index] == _SENT:
@@ -153,10 +186,10 @@ class Layout:
                 at += 8 * size
             elif kept[index] is None:
                 raise CodecError(f"{self.role} {name!r} held before it was ever sent")
-            out[name] = kept[index]
+            out[self._array_at[index]] = kept[index]
         if at != len(data):
             raise CodecError(f"message of {len(data)} bytes, expected {at} for ports {list(self.names)}")
-        return out
+        return tuple(out)
 
     def problem(self, values: Any) -> str:
         """Why `values` cannot be packed, naming the first bad port, or "" if it can."""

@@ -63,6 +63,12 @@ class RemoteComponent:
         self.publisher, self.replies = channel  # requests out, replies in
         self.uses_outputs = uses_outputs  # its class hears use_outputs (from the handshake)
         self._host = host
+        # the master's values lane (cosim.engine.master): the wire carries the values in
+        # declared order either way, so every component with scalar outputs is offered it
+        self.value_names: tuple[tuple[str, ...], tuple[str, ...]] | None = None
+        if all(port.size == 1 for port in outputs):
+            self.value_names = (tuple(p.name for p in inputs), tuple(p.name for p in outputs))
+        self.values_exact = True  # the reply's floats, one per output (decoded by struct)
 
     def use_outputs(self, names: Set[str]) -> None:
         """Tell the remote component which outputs the run reads (one exchange, when its
@@ -77,6 +83,10 @@ class RemoteComponent:
     def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """Step the remote component to time t; return its outputs."""
         return self._host.exchange_outputs(self, Kind.STEP, tick, t, inputs)
+
+    def step_values(self, tick: int, t: float, inputs: Sequence[Value]) -> tuple[float, ...]:
+        """Step the remote component on its inputs in declared order; its outputs likewise."""
+        return self._host.exchange_values(self, tick, t, inputs)
 
     def stop(self) -> dict[str, float]:
         """Ask the remote component to finish; return its metrics. Its process then exits."""
@@ -318,6 +328,19 @@ class ZenohComponents:
         data = self._exchange(remote, request, tick, t)
         try:
             return remote.out_layout.decode(data)
+        except CodecError as exc:
+            raise self._fail(ComponentFailure(remote.name, tick, t, str(exc))) from None
+
+    def exchange_values(self, remote: RemoteComponent, tick: int, t: float,
+                        inputs: Sequence[Value]) -> tuple[float, ...]:
+        """`exchange_outputs` of a STEP on the values lane: inputs and outputs in declared order."""
+        try:
+            request = remote.in_layout.encode_values(Kind.STEP, self._seq + 1, tick, t, inputs)
+        except CodecError as exc:
+            raise ComponentFailure(remote.name, tick, t, str(exc)) from None
+        data = self._exchange(remote, request, tick, t)
+        try:
+            return remote.out_layout.decode_values(data)
         except CodecError as exc:
             raise self._fail(ComponentFailure(remote.name, tick, t, str(exc))) from None
 

@@ -37,7 +37,7 @@ from typing import Any
 
 import zenoh
 
-from cosim.component import Component
+from cosim.component import Component, values_step
 from cosim.errors import UserError
 from cosim.transport.inproc import (ParameterProblem, PythonComponentLaunch, construct_component,
                           describe_exception)
@@ -108,10 +108,15 @@ class _Server:
         if self.component is not None:
             self.in_layout = Layout(self.component.inputs, "input")
             self.out_layout = Layout(self.component.outputs)
-            # bound once: the step path below is the per-tick hot path
-            self._decode = self.in_layout.decode
-            self._encode = self.out_layout.encode
-            self._step_component = self.component.step
+            # bound once: the step path below is the per-tick hot path; a component with
+            # `step_values` (scalar outputs) is stepped on the values in declared order
+            lane = values_step(self.component)
+            if lane is not None:
+                self._decode, self._encode = self.in_layout.decode_values, self.out_layout.encode_values
+                self._step_component = lane
+            else:
+                self._decode, self._encode = self.in_layout.decode, self.out_layout.encode
+                self._step_component = self.component.step
 
     def handle(self, data: bytes) -> tuple[bytes | None, bool]:
         """The reply to one request, and whether the process should end after it."""
