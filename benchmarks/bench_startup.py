@@ -19,6 +19,8 @@ sandbox sets PYTHONDONTWRITEBYTECODE=1). DESIGN.md target: under 1 s over Zenoh.
 forked: its cost at start-up is the difference to "zenoh").
 "zenoh-noprestart" runs `cosim run --no-prestart` (component processes started
 after the scenario is loaded instead of while it loads), for comparison.
+"zenoh-anycpu" runs `cosim run --lockstep-cpu off` (the processes where the OS
+puts them, instead of on the master's CPU).
 """
 
 from __future__ import annotations
@@ -49,8 +51,9 @@ def cosim_command() -> list[str]:
 def run_once(scenario: Path, transport: str, out: Path, duration: float,
              env: dict[str, str]) -> dict:
     """One `cosim run`; returns its manifest (raises if the run failed)."""
-    variants = {"noprestart": "--no-prestart", "nosupervise": "--no-supervise"}
-    extra = [variants[v] for v in transport.split("-")[1:]]
+    variants = {"noprestart": ["--no-prestart"], "nosupervise": ["--no-supervise"],
+                "anycpu": ["--lockstep-cpu", "off"]}
+    extra = [arg for v in transport.split("-")[1:] for arg in variants[v]]
     cmd = [*cosim_command(), "run", str(scenario), "--out", str(out), "--no-figures",
            "--transport", transport.split("-")[0], "--set", f"duration={duration!r}", *extra]
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env)

@@ -60,7 +60,8 @@ def _on_one_cpu(run, *args):
     """`run(*args)` with this thread, and the processes it starts, on one CPU (as our zenoh runs)."""
     from cosim.engine.one_cpu import PinnedChain
 
-    with PinnedChain("auto"):
+    with PinnedChain("auto") as chain:
+        chain.pin()  # before the simulators start: they inherit the CPU (start-up is not timed)
         return run(*args)
 
 

@@ -117,12 +117,10 @@ def run(
             raise typer.Exit(status)
         clock.after_fork(cpu_before_fork)  # the master's CPU time counts the parsing too
     early = None
-    chain = one_cpu.PinnedChain(chain_setting)
     try:
         if prestart and transport == "zenoh" and not (place or listen or connect or deploy):
             from cosim.execution.prestart import prestart_components
 
-            chain.__enter__()  # before the processes start: they inherit its CPU
             early = prestart_components(scenario_file)  # their start overlaps the scenario's load
         result = _load_and_run(scenario_file, set_, out_dir, (deploy, listen, connect), clock,
                                (foxglove, foxglove_host), transport=transport, realtime=realtime,
@@ -141,7 +139,6 @@ def run(
     finally:
         if early is not None:
             early.close()
-        chain.__exit__(None, None, None)
     _finish_run(result, figures, mcap)
 
 

@@ -156,6 +156,8 @@ class WorkerChild:
         info: the worker's info reply (host, pid).
     """
 
+    is_local = False  # its pid is the worker's
+
     def __init__(self, hosted: "DistributedComponents", spec: PythonComponentLaunch,
                  worker: str, info: Mapping[str, Any]) -> None:
         self.hosted, self.name, self.worker = hosted, spec.name, worker

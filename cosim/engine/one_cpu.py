@@ -114,14 +114,14 @@ def _set(tids: Iterable[int], cpus: set[int]) -> None:
 
 
 class PinnedChain:
-    """Every thread of this process on one CPU while the context is open.
+    """The lockstep chain on one CPU from `pin` until the context ends.
 
     Args:
         setting: "auto", "off" or a CPU number (see the module docstring).
 
     Attributes:
-        cpu: the CPU chosen, or None when nothing is pinned (off, a single CPU,
-            an unsupported platform).
+        cpu: the CPU chosen by `pin`, or None while nothing is pinned (before `pin`,
+            off, a single CPU, an unsupported platform).
     """
 
     def __init__(self, setting: Setting = AUTO) -> None:
@@ -129,15 +129,20 @@ class PinnedChain:
         self.cpu: int | None = None
         self._allowed: set[int] = set()
         self._saved: dict[int, set[int]] = {}
-        self._outer: PinnedChain | None = None
 
-    def __enter__(self) -> int | None:
+    def __enter__(self) -> "PinnedChain":
+        return self
+
+    def pin(self, processes: Iterable[int] = ()) -> int | None:
+        """Put this thread, Zenoh's runtime threads and every thread of `processes` (the
+        chain's other processes, on this machine) on one CPU; return it, or None.
+
+        Called once everything has started (start-up uses every CPU), just before tick 0.
+        """
         global _active
-        if _active is not None:  # pinned already (`cosim run` pins before its prestart)
-            self._outer = _active
-            self.cpu = _active.cpu
+        if self.cpu is not None or self.setting == OFF or not supported():
             return self.cpu
-        if self.setting == OFF or not supported():
+        if _active is not None:  # another chain of this process (a nested run) holds one
             return None
         self._allowed = set(os.sched_getaffinity(0))
         cpu = self._choose()
@@ -150,6 +155,8 @@ class PinnedChain:
             except (ProcessLookupError, PermissionError):
                 continue
         _set(self._saved, {cpu})
+        for pid in processes:
+            _set(_threads_of(pid), {cpu})
         self.cpu = cpu
         _active = self
         return cpu
@@ -173,14 +180,22 @@ class PinnedChain:
 
     def __exit__(self, *exc_info: object) -> None:
         global _active
-        if self._outer is not None or self.cpu is None:
+        if self.cpu is None:
             return
         for tid in _threads():
             if tid in self._saved:
                 _set([tid], self._saved[tid])
             elif _affinity(tid) == {self.cpu}:  # born meanwhile from a pinned thread
                 _set([tid], self._allowed)
+        self.cpu = None
         _active = None
+
+
+def _threads_of(pid: int) -> list[int]:
+    try:
+        return [int(tid) for tid in os.listdir(f"/proc/{pid}/task")]
+    except OSError:
+        return []  # it has ended already
 
 
 def _affinity(tid: int) -> set[int]:
@@ -203,8 +218,4 @@ def release(pid: int) -> None:
     """
     if _active is None or _active.cpu is None:
         return
-    try:
-        tids = [int(tid) for tid in os.listdir(f"/proc/{pid}/task")]
-    except OSError:
-        return  # it has ended already
-    _set(tids, _active.others())
+    _set(_threads_of(pid), _active.others())

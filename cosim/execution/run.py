@@ -148,7 +148,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         remote_launches = [launch for launch in launches if launch.name not in in_master]
         chain_setting = lockstep_cpu if _starts_processes(scenario, transport, remote_launches,
                                                           placement, prestart) else one_cpu.OFF
-        chain_cpu = stack.enter_context(one_cpu.PinnedChain(chain_setting))
+        chain = stack.enter_context(one_cpu.PinnedChain(chain_setting))  # pinned before tick 0
         out = _make_run_folder(Path(out_dir))
         run_id = prestart.run_id if prestart is not None else uuid.uuid4().hex[:12]
         page = supervisor.current()
@@ -167,7 +167,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                                    placement, deploy, limits)
             options = _Options(fmu_hosting.start_time(scenario, all_fmus),
                                fmu_hosting.deadlines(scenario, prepared.names, deadline_s),
-                               fmu_log, page, tuple(observers), chain_cpu)
+                               fmu_log, page, tuple(observers), chain)
             hosted = _host_components(prepared, remote, in_master, clock, out, options)
             _check_gaps(scenario, hosted, all_fmus, strict, on_warning)
             if before_tick0 is not None:
@@ -194,7 +194,7 @@ class _Options:
     fmu_log: bool
     page: Any  # cosim.execution.supervisor.ControlPage, or None (not supervised)
     observers: tuple[Any, ...] = ()  # more master observers, after the recorder
-    lockstep_cpu: int | None = None  # the CPU of the master and its processes, None: any
+    chain: Any = None  # cosim.engine.one_cpu.PinnedChain: the CPU of the lockstep chain
 
 
 def _starts_processes(scenario: Any, transport: str, remote_launches: list[Any],
@@ -409,7 +409,8 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
                         {n: c.period_ticks for n, c in hosted.items()}, prepared.limits)
     manifest = base_manifest(scenario, prepared, hosted, transport, run_id, master.order)
     manifest["start_time"] = master.t0
-    manifest["lockstep_cpu"] = options.lockstep_cpu
+    # everything has started (on every CPU): from tick 0 on, the chain shares one
+    manifest["lockstep_cpu"] = options.chain.pin(_local_processes(hosted, remote)) if options.chain else None
     local = {n for n, c in hosted.items() if fmu_hosting.is_local_call(c)}
     manifest["supervision"] = supervisor.supervision_entry(master.order, local, options.deadlines)
     live = None
@@ -464,6 +465,15 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
     if failure is not None and not isinstance(failure, (UserError, KeyboardInterrupt)):
         raise failure
     return result
+
+
+def _local_processes(hosted: dict[str, Any], remote: Any) -> list[int]:
+    """The process ids of the lockstep chain on this machine besides the master's: component
+    processes it spawned, isolated FMUs."""
+    from cosim.fmu.isolated import IsolatedFmu
+
+    pids = list(remote.local_pids()) if remote is not None else []
+    return pids + [c.pid for c in hosted.values() if isinstance(c, IsolatedFmu)]
 
 
 def _build_master(scenario: Any, hosted: dict[str, Any], remote: Any, out: Path,

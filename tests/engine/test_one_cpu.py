@@ -57,13 +57,13 @@ def test_a_bad_setting_names_the_option_and_the_value(value, problem):
 
 def test_off_pins_nothing():
     before = os.sched_getaffinity(0)
-    with one_cpu.PinnedChain("off") as cpu:
-        assert cpu is None and one_cpu.pinned_cpu() is None
+    with one_cpu.PinnedChain("off") as chain:
+        assert chain.pin() is None and one_cpu.pinned_cpu() is None
         assert os.sched_getaffinity(0) == before
 
 
 @needs_two_cpus
-def test_auto_pins_this_thread_and_what_it_starts_then_restores_both():
+def test_pin_puts_this_thread_and_what_it_starts_on_one_cpu_and_the_end_restores_both():
     seen: dict[str, set[int]] = {}
     release = threading.Event()
 
@@ -72,8 +72,10 @@ def test_auto_pins_this_thread_and_what_it_starts_then_restores_both():
         release.wait(10)
         seen["after"] = set(os.sched_getaffinity(0))
 
-    with one_cpu.PinnedChain("auto") as cpu:
-        assert cpu in ALLOWED and one_cpu.pinned_cpu() == cpu
+    with one_cpu.PinnedChain("auto") as chain:
+        assert os.sched_getaffinity(0) == ALLOWED     # nothing before pin (start-up uses every CPU)
+        cpu = chain.pin()
+        assert cpu in ALLOWED and one_cpu.pinned_cpu() == cpu == chain.pin()
         assert os.sched_getaffinity(0) == {cpu}
         thread = threading.Thread(target=born_pinned)
         thread.start()
@@ -100,7 +102,8 @@ def test_other_threads_of_the_process_keep_their_cpus():
     thread = threading.Thread(target=bystander)
     thread.start()
     ready.wait(10)
-    with one_cpu.PinnedChain("auto"):
+    with one_cpu.PinnedChain("auto") as chain:
+        chain.pin()
         done.set()
         thread.join(10)
     assert seen == [ALLOWED]
@@ -109,31 +112,39 @@ def test_other_threads_of_the_process_keep_their_cpus():
 @needs_two_cpus
 def test_an_explicit_cpu_is_used_and_one_not_allowed_is_refused():
     cpu = max(ALLOWED)
-    with one_cpu.PinnedChain(cpu) as chosen:
-        assert chosen == cpu and os.sched_getaffinity(0) == {cpu}
+    with one_cpu.PinnedChain(cpu) as chain:
+        assert chain.pin() == cpu and os.sched_getaffinity(0) == {cpu}
     with pytest.raises(UserError, match=r"lockstep CPU 4096: this process may run only on CPU "):
-        one_cpu.PinnedChain(4096).__enter__()
+        with one_cpu.PinnedChain(4096) as chain:
+            chain.pin()
     assert one_cpu.pinned_cpu() is None and os.sched_getaffinity(0) == ALLOWED
 
 
 @needs_two_cpus
-def test_a_nested_chain_shares_the_outer_cpu_and_leaves_the_restore_to_it():
+def test_a_second_chain_pins_nothing_while_one_is_pinned():
     with one_cpu.PinnedChain("auto") as outer:
+        cpu = outer.pin()
         with one_cpu.PinnedChain("auto") as inner:
-            assert inner == outer
-        assert os.sched_getaffinity(0) == {outer}
+            assert inner.pin() is None
+        assert os.sched_getaffinity(0) == {cpu}
     assert os.sched_getaffinity(0) == ALLOWED
 
 
-@needs_two_cpus
-def test_a_released_process_gets_the_other_cpus():
+def _child_reporting_its_cpus() -> subprocess.Popen:
     script = "import os, sys; sys.stdin.readline(); print(sorted(os.sched_getaffinity(0)))"
-    with one_cpu.PinnedChain("auto") as cpu:
-        child = subprocess.Popen([sys.executable, "-c", script], stdin=subprocess.PIPE,
-                                 stdout=subprocess.PIPE, text=True)
-        one_cpu.release(child.pid)
-        out, _ = child.communicate("go\n", timeout=30)
-    assert json.loads(out) == sorted(ALLOWED - {cpu})
+    return subprocess.Popen([sys.executable, "-c", script], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True)
+
+
+@needs_two_cpus
+def test_pin_takes_the_chains_processes_along_and_release_gives_a_helper_the_others():
+    member = _child_reporting_its_cpus()      # started before the pin, as the components are
+    with one_cpu.PinnedChain("auto") as chain:
+        cpu = chain.pin([member.pid])
+        helper = _child_reporting_its_cpus()  # started after it, as the CSV writer is
+        one_cpu.release(helper.pid)
+        outputs = [child.communicate("go\n", timeout=30)[0] for child in (member, helper)]
+    assert [json.loads(out) for out in outputs] == [[cpu], sorted(ALLOWED - {cpu})]
 
 
 @needs_two_cpus
@@ -160,3 +171,12 @@ def test_the_api_refuses_a_bad_setting_before_running(tmp_path):
     with pytest.raises(UserError, match=r"^lockstep_cpu: expected auto, off or a CPU number, got 'x'$"):
         cosim.run(SCENARIO, transport="zenoh", out=tmp_path / "bad", lockstep_cpu="x")
     assert not (tmp_path / "bad").exists()
+
+
+@needs_two_cpus
+def test_an_in_process_run_with_an_isolated_fmu_pins_its_chain(tmp_path):
+    run = cosim.run("lane_change", set={"duration": 0.5, "components.vehicle.isolate": True},
+                    transport="inproc", out=tmp_path / "isolated")
+    manifest = json.loads((tmp_path / "isolated" / "manifest.json").read_text())
+    assert run.status == "ok" and manifest["lockstep_cpu"] in ALLOWED
+    assert os.sched_getaffinity(0) == ALLOWED

@@ -242,6 +242,10 @@ class ZenohComponents:
         """Process id of each component's process."""
         return {name: child.pid for name, child in self._children.items()}
 
+    def local_pids(self) -> list[int]:
+        """Process ids of the component processes on this machine (not a worker's)."""
+        return [child.pid for child in self._children.values() if child.is_local]
+
     def _open_session(self) -> None:
         """Open the master session, listening on `endpoint` or on a free port."""
         attempts = 1 if self.endpoint else OPEN_ATTEMPTS

@@ -89,6 +89,8 @@ class ChildProcess:
             for its handshake by then (None: the runner's default).
     """
 
+    is_local = True  # a process of this machine (a worker's stand-in says False)
+
     def __init__(self, spec: PythonComponentLaunch, run_id: str, endpoint: str, *,
                  credential: Credential | None = None,
                  session_config: dict[str, Any] | None = None,
