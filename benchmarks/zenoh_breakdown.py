@@ -106,8 +106,11 @@ def zenoh_steps(prepared, make_master) -> tuple[dict[str, list[float]], dict[str
 
     with ZenohComponents(prepared.launches, run_id=f"breakdown{uuid.uuid4().hex[:8]}") as remote:
         durations: dict[str, list[float]] = {name: [] for name in remote.components}
-        for name, component in remote.components.items():
-            component.step = _timed(component.step, durations[name], time.perf_counter)
+        for name, component in remote.components.items():  # the call the master makes, as above
+            if component.value_names is not None:
+                component.step_values = _timed(component.step_values, durations[name], time.perf_counter)
+            else:
+                component.step = _timed(component.step, durations[name], time.perf_counter)
         pids = {"master": os.getpid(), **remote.pids}
         master = make_master(prepared, remote.components)
         try:
