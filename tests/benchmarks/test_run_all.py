@@ -87,9 +87,18 @@ ratio tick / raw (medians): 1.23  (target <= 1.25)
 """
 
 
+ZENOH_ONE_CPU = """(a1) the same on one CPU           median     36.4 us   p99     79.2 us   (n=2000)
+(b1) the same on one CPU           median     67.3 us   p99    109.8 us   (n=2000)
+ratio tick / raw on one CPU (medians): 1.85  (target <= 1.25)
+"""
+
+
 def test_an_output_reader_takes_the_printed_figures():
     (row,) = run_all_rows.zenoh(ZENOH_OUTPUT)
     assert row["figure"] == "97.6 vs 79.7 µs: 1.23" and row["met"] is True
+    os_placed, one_cpu = run_all_rows.zenoh(ZENOH_OUTPUT + ZENOH_ONE_CPU)
+    assert os_placed == row
+    assert one_cpu["figure"] == "67.3 vs 36.4 µs: 1.85" and one_cpu["met"] is False
 
 
 def test_an_output_reader_finds_nothing_in_a_changed_format():
