@@ -325,26 +325,26 @@ class ZenohComponents:
         if kind == Kind.START:  # every array afresh, both ways (see codec.Layout)
             remote.in_layout.forget()
             remote.out_layout.forget()
-        try:
-            request = remote.in_layout.encode(kind, self._seq + 1, header_tick(tick), t, inputs)
-        except CodecError as exc:
-            raise ComponentFailure(remote.name, tick, t, str(exc)) from None
-        data = self._exchange(remote, request, tick, t)
-        try:
-            return remote.out_layout.decode(data)
-        except CodecError as exc:
-            raise self._fail(ComponentFailure(remote.name, tick, t, str(exc))) from None
+        return self._coded_exchange(remote, remote.in_layout.encode, remote.out_layout.decode,
+                                    kind, tick, t, inputs)
 
     def exchange_values(self, remote: RemoteComponent, tick: int, t: float,
                         inputs: Sequence[Value]) -> tuple[float, ...]:
         """`exchange_outputs` of a STEP on the values lane: inputs and outputs in declared order."""
+        return self._coded_exchange(remote, remote.in_layout.encode_values,
+                                    remote.out_layout.decode_values, Kind.STEP, tick, t, inputs)
+
+    def _coded_exchange(self, remote: RemoteComponent, encode: Any, decode: Any, kind: int,
+                        tick: int | None, t: float, inputs: Any) -> Any:
+        """Encode the request, exchange it, decode the reply; a codec problem is the
+        component's failure at this tick."""
         try:
-            request = remote.in_layout.encode_values(Kind.STEP, self._seq + 1, tick, t, inputs)
+            request = encode(kind, self._seq + 1, header_tick(tick), t, inputs)
         except CodecError as exc:
             raise ComponentFailure(remote.name, tick, t, str(exc)) from None
         data = self._exchange(remote, request, tick, t)
         try:
-            return remote.out_layout.decode_values(data)
+            return decode(data)
         except CodecError as exc:
             raise self._fail(ComponentFailure(remote.name, tick, t, str(exc))) from None
 
