@@ -170,8 +170,10 @@ def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: 
     from cosim.execution.run import run_scenario
     from cosim.scenario.loader import load_scenario
 
+    # samples run side by side, one per worker: each pinning its chain to the CPU its worker
+    # happens to be on could put two on one CPU and leave another idle; the OS spreads them
     result = run_scenario(load_scenario(scenario_path, list(overrides)), out_dir=run_dir,
-                          transport=transport, progress=False)
+                          transport=transport, progress=False, lockstep_cpu="off")
     if result.status != "ok":
         raise UserError(result.error or f"run ended with status {result.status!r}")
     # one parse and one analysis of the run folder: metrics.json then holds the

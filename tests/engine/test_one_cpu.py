@@ -180,3 +180,12 @@ def test_an_in_process_run_with_an_isolated_fmu_pins_its_chain(tmp_path):
     manifest = json.loads((tmp_path / "isolated" / "manifest.json").read_text())
     assert run.status == "ok" and manifest["lockstep_cpu"] in ALLOWED
     assert os.sched_getaffinity(0) == ALLOWED
+
+
+def test_a_sweep_sample_leaves_the_placement_to_the_os(tmp_path):
+    from cosim.execution.sweep import run_scenario_sample
+    from tests.helpers.paths import SCENARIOS_DIR
+
+    metrics = run_scenario_sample(SCENARIOS_DIR / "lane_change.yaml", ["duration=0.5"],
+                                  tmp_path / "sample", "zenoh")
+    assert metrics and json.loads((tmp_path / "sample" / "manifest.json").read_text())["lockstep_cpu"] is None
