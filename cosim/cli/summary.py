@@ -125,6 +125,9 @@ def run_rows(result: Any) -> list[tuple[str, str]]:
     if loop:       # wall time and real-time factor count tick 0 (start-up); these do not
         rows.append(("loop time (ticks 1..N)", f"{loop:.4g} s"))
         rows.append(("loop real-time factor", f"{result.sim_time_s / loop:.4g}"))
+    cpu = getattr(result, "lockstep_cpu", None)
+    if cpu is not None:     # the run's processes shared one CPU (cosim.engine.one_cpu)
+        rows.append(("lockstep CPU", str(cpu)))
     for key, value in (result.realtime or {}).items():
         rows.append((f"realtime.{key}", f"{value:.4g}" if isinstance(value, float) else str(value)))
     return rows

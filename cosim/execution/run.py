@@ -63,6 +63,7 @@ class RunResult:
     # wall time of ticks 1..N alone (wall_time_s also counts tick 0, the initialization
     # phase); None when tick 0 was not completed
     loop_time_s: float | None = None
+    lockstep_cpu: int | None = None  # the CPU the chain ran on from tick 0 (None: the OS placed it)
 
     @property
     def signals(self) -> Path:
@@ -458,7 +459,7 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
                        metrics, pacer.stats() if pacer else None,
                        clock.marks.get("tick0"), clock.as_dict(), live,
                        _stopped_by(master.stop_request), recorder.full_signals,
-                       ended - loop_started[0] if loop_started else None)
+                       ended - loop_started[0] if loop_started else None, manifest["lockstep_cpu"])
     write_json_in_place(out / "manifest.json", finish_manifest(manifest, result, failure))
     if options.page is not None:
         options.page.done()

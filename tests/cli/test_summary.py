@@ -54,7 +54,7 @@ def test_print_summary_shows_both_tables(tmp_path: Path):
     result = RunResult(tmp_path, "ok", None, 4500, 45.0, 2.25, 20.0,
                        {"rms_yc": 0.0034863380946407495, "controller.steps": 4501.0},
                        {"factor": 1.0, "deadline_misses": 2}, 0.9345, {"origin": "process start"},
-                       loop_time_s=1.25)
+                       loop_time_s=1.25, lockstep_cpu=1)
     console = Console(record=True, width=100)
     print_summary(result, console)
     text = console.export_text()
@@ -63,6 +63,7 @@ def test_print_summary_shows_both_tables(tmp_path: Path):
     for expected in (f"folder {tmp_path}", "ticks 4500", "sim time 45 s", "wall time 2.25 s",
                      "real-time factor 20",
                      "time to tick 0 0.934 s", "loop time (ticks 1..N) 1.25 s", "loop real-time factor 36",
+                     "lockstep CPU 1",
                      "realtime.factor 1", "realtime.deadline_misses 2",
                      "rms_yc 0.003486 m lateral error at the CG, yL - ls psiL (paper, Fig. 4.7)",
                      "controller.steps 4501 reported by controller"):
