@@ -331,6 +331,9 @@ def main() -> None:
     if args.netns_child:
         netns_measure(args.seconds, args.repeats, args.netns_child, args.master_host)
         return
+    if CHAIN_CPU is None:
+        print("this platform does not let a process choose its CPUs: the 'one CPU' cases below run "
+              "where the OS puts them")
     before = load_average()
     samples = measure(args.seconds, args.repeats)
     print(f"satory_nominal, {args.seconds:g} s simulated ({args.seconds * 100:.0f} ticks), {args.repeats} "
@@ -376,10 +379,10 @@ def table_rows(where: str, f: dict[str, float]) -> list[dict]:
         if f"ratio {case} to the OS-placed floor median" in f:
             ratio = f[f"ratio {case} to the OS-placed floor median"]
             floor = f"inproc {f['inproc loop median']:.0f} + round trip {f[f'{OS_RAW} median']:.0f} µs"
+            # for reference only: a one-CPU loop over a floor placed otherwise is no target's ratio
             rows.append(table_row(f"Satory loop over Zenoh ({what}, {where}) / (in-process tick + 1 OS-placed "
-                                  f"raw round trip: the floor as the issue defined it)",
-                                  f"{f[f'{case} median']:.0f} µs/tick vs {floor}: {ratio:.2f}",
-                                  f"<= {TARGET}", ratio <= TARGET))
+                                  f"raw round trip: the floor as the issue defined it, placed unlike the loop)",
+                                  f"{f[f'{case} median']:.0f} µs/tick vs {floor}: {ratio:.2f}", "-", None))
     if "speed-up of one CPU median" in f:
         rows.append(table_row(f"Satory loop over Zenoh ({where}): OS placement / one CPU",
                               f"{f['speed-up of one CPU median']:.2f}x", "-", None))

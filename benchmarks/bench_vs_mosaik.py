@@ -19,12 +19,14 @@ mosaik's from the simulators' clock marks, `benchmarks/mosaik_sims.py`):
   its component processes on one CPU (`--lockstep-cpu auto`);
 - `mosaik processes, one CPU`: mosaik's processes mode with this process and
   its simulators' processes on one CPU too, so that the placement is not what
-  the comparison measures (printed beside the target's pair).
+  the comparison measures: this pair, not mosaik's default placement, carries
+  the target.
 
 Before timing anything it checks that the trajectories agree: the vehicle's
 x, y, psi, vx at every tick from mosaik (both modes) against ours, bit for bit
-(`CHECK FAILED` and exit 1 otherwise). Prints us per tick (min, median) and
-the two ratios mosaik / ours against the 5x target; then the same for the
+(`CHECK FAILED` and exit 1 otherwise). Prints us per tick (min, median), the
+two ratios mosaik / ours of the pairs placed alike against the 5x target and
+the ratio of mosaik's default placement against ours; then the same for the
 whole run, tick 0 included (`world.run` / `RunResult.wall_time_s`): at
 `--seconds 10` the initialization phase alone is about 0.1 s, i.e. 100 us
 per tick on each side.
@@ -214,20 +216,23 @@ def main() -> None:
         low, mid = min_and_median(values)
         figures[f"{label} min"], figures[f"{label} median"] = low * 1e6, mid * 1e6
         print(f"{label:<24}{low * 1e6:>13.1f}{mid * 1e6:>10.1f}")
-    for mosaik_case, ours_case in (("mosaik in-process", "ours inproc"), ("mosaik processes", "ours zenoh")):
+    # the target's pairs place both sides alike: in-process, and processes on one CPU (ours
+    # does that by default; mosaik's own default, the OS placement, is printed for reference)
+    for mosaik_case, ours_case, targeted in (("mosaik in-process", "ours inproc", True),
+                                             (ONE_CPU, "ours zenoh", True),
+                                             ("mosaik processes", "ours zenoh", False)):
         ratio = figures[f"{mosaik_case} min"] / figures[f"{ours_case} min"]
         ratio_median = figures[f"{mosaik_case} median"] / figures[f"{ours_case} median"]
         figures[f"ratio {mosaik_case}"] = ratio
-        print(f"{mosaik_case} / {ours_case}: {ratio:.2f}x faster (medians: {ratio_median:.2f}x); target >= "
-              f"{TARGET:g}x: {'met' if ratio >= TARGET else 'not met'}")
-        rows.append(table_row(f"Satory loop, ticks 1..N: {mosaik_case} / {ours_case} (same trajectory, bit for bit)",
+        verdict = f"; target >= {TARGET:g}x: {'met' if ratio >= TARGET else 'not met'}" if targeted else ""
+        print(f"{mosaik_case} / {ours_case}: {ratio:.2f}x faster (medians: {ratio_median:.2f}x){verdict}")
+        placed = " (both on one CPU)" if mosaik_case == ONE_CPU else (
+            " (mosaik where the OS puts it, ours on one CPU)" if not targeted else "")
+        rows.append(table_row(f"Satory loop, ticks 1..N: {mosaik_case} / {ours_case}{placed} (same trajectory, "
+                              f"bit for bit)",
                               f"{figures[f'{mosaik_case} min']:.0f} vs {figures[f'{ours_case} min']:.0f} "
-                              f"µs/tick: {ratio:.2f}x", f">= {TARGET:g}x", ratio >= TARGET))
-    ratio = figures[f"{ONE_CPU} min"] / figures["ours zenoh min"]
-    print(f"{ONE_CPU} / ours zenoh (both on one CPU): {ratio:.2f}x")
-    rows.append(table_row(f"Satory loop, ticks 1..N: {ONE_CPU} / ours zenoh (both on one CPU)",
-                          f"{figures[f'{ONE_CPU} min']:.0f} vs {figures['ours zenoh min']:.0f} µs/tick: "
-                          f"{ratio:.2f}x", "-", None))
+                              f"µs/tick: {ratio:.2f}x", f">= {TARGET:g}x" if targeted else "-",
+                              (ratio >= TARGET) if targeted else None))
     print("the whole run, tick 0 (initialization) included:")
     for label, values in whole.items():
         low, mid = min_and_median(values)

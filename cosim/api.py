@@ -200,10 +200,10 @@ def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
     from cosim.execution.run import check_run_options, run_scenario
     from cosim.results.folders import stamped_folder
 
-    from cosim.engine.one_cpu import parse_setting
+    from cosim.engine.one_cpu import check_setting
 
     check_run_options(transport, None)
-    parse_setting(lockstep_cpu, "lockstep_cpu")
+    check_setting(lockstep_cpu, "lockstep_cpu")
     if isinstance(place, str):      # one item given bare, not a list of one
         place = [place]
     settings = None

@@ -104,7 +104,7 @@ def run(
             from cosim.cli.foxglove import require_foxglove
             require_foxglove("--mcap")
         limits = RunLimits(max_ticks, allow_large)
-        chain_setting = one_cpu.parse_setting(lockstep_cpu)
+        chain_setting = one_cpu.check_setting(lockstep_cpu)
         out_dir = check_out_option(out, force)
     except UserError as error:
         raise user_error_exit(error) from None

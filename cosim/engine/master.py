@@ -42,7 +42,7 @@ from cosim.engine.hosting import HostedComponent
 from cosim.engine.movers import FrozenArrays, input_builder, output_reader, values_picker
 from cosim.engine.schedule import step_order
 from cosim.engine.signals import ComponentSlots, SignalLayout, build_layout, transformed
-from cosim.engine.values import value_problem
+from cosim.engine.values import lane_result_problem, value_problem
 
 _add_reduce = np.add.reduce
 
@@ -381,15 +381,9 @@ def _values_lane(hosted: Any, slots: ComponentSlots,
 def _lane_outputs(plan: _Plan, new: Any, k: int, t: float) -> list[float]:
     """Outputs of the values lane that failed the quick test: as floats (what `float()` makes of each,
     as the mapping path reads them), or the failure naming the bad output."""
-    try:
-        count = len(new)
-    except TypeError:
-        return_type = type(new).__name__
-        raise ComponentFailure(plan.name, k, t, f"step_values returned {return_type}, "
-                               f"expected a sequence of {plan.out_count} floats") from None
-    if count != plan.out_count:
-        raise ComponentFailure(plan.name, k, t, f"step_values returned {count} values for "
-                               f"{plan.out_count} outputs")
+    problem = lane_result_problem(new, plan.out_count)
+    if problem:
+        raise ComponentFailure(plan.name, k, t, problem)
     outputs = dict(zip(plan.slots.out_scalar_names, new))
     try:
         floats = plan.read_outputs(outputs)

@@ -65,6 +65,26 @@ def parse_setting(value: object, source: str = "--lockstep-cpu") -> Setting:
     return cpu
 
 
+def check_setting(setting: Setting, source: str = "--lockstep-cpu") -> Setting:
+    """`parse_setting`, and a CPU number checked against the CPUs this process may use
+    (before a run starts anything).
+
+    Raises:
+        UserError naming the option: not a setting, a CPU not allowed here, or a CPU
+        number on a platform where a process cannot choose its CPUs.
+    """
+    setting = parse_setting(setting, source)
+    if isinstance(setting, int):
+        if not supported():
+            raise UserError(f"{source} {setting}: this platform does not let a process choose "
+                            f"its CPUs (Linux does); use auto or off")
+        allowed = set(os.sched_getaffinity(0))
+        if setting not in allowed:
+            names = ", ".join(str(c) for c in sorted(allowed))
+            raise UserError(f"{source} {setting}: this process may run only on CPU {names}")
+    return setting
+
+
 def supported() -> bool:
     """Whether this platform lets a process choose its threads' CPUs (Linux)."""
     return hasattr(os, "sched_setaffinity") and os.path.isdir("/proc/self/task")
@@ -109,7 +129,7 @@ def _set(tids: Iterable[int], cpus: set[int]) -> None:
     for tid in tids:
         try:
             os.sched_setaffinity(tid, cpus)
-        except (ProcessLookupError, PermissionError):  # the thread ended meanwhile
+        except OSError:  # the thread ended meanwhile, or its cpuset refuses (EINVAL): left as it is
             pass
 
 
@@ -128,7 +148,8 @@ class PinnedChain:
         self.setting = parse_setting(setting)
         self.cpu: int | None = None
         self._allowed: set[int] = set()
-        self._saved: dict[int, set[int]] = {}
+        self._saved: dict[int, set[int]] = {}  # the chain threads pinned: their CPUs before
+        self._before: set[int] = set()  # every thread of this process when `pin` began
 
     def __enter__(self) -> "PinnedChain":
         return self
@@ -142,23 +163,18 @@ class PinnedChain:
         global _active
         if self.cpu is not None or self.setting == OFF or not supported():
             return self.cpu
-        if _active is not None:  # another chain of this process (a nested run) holds one
-            return None
+        if _active is not None:  # a chain of this process (an outer run) holds one: this
+            return _active.cpu   # thread, and what it started, are on it already
         self._allowed = set(os.sched_getaffinity(0))
         cpu = self._choose()
         if cpu is None:
             return None
-        self._saved = {}
-        for tid in _chain_threads():
-            try:
-                self._saved[tid] = set(os.sched_getaffinity(tid))
-            except (ProcessLookupError, PermissionError):
-                continue
+        self._before = set(_threads())
+        self._saved = {tid: cpus for tid in _chain_threads() if (cpus := _affinity(tid))}
+        self.cpu, _active = cpu, self  # before any change: an interruption below is undone at exit
         _set(self._saved, {cpu})
         for pid in processes:
             _set(_threads_of(pid), {cpu})
-        self.cpu = cpu
-        _active = self
         return cpu
 
     def _choose(self) -> int | None:
@@ -185,7 +201,7 @@ class PinnedChain:
         for tid in _threads():
             if tid in self._saved:
                 _set([tid], self._saved[tid])
-            elif _affinity(tid) == {self.cpu}:  # born meanwhile from a pinned thread
+            elif tid not in self._before and _affinity(tid) == {self.cpu}:  # born pinned
                 _set([tid], self._allowed)
         self.cpu = None
         _active = None
@@ -201,7 +217,7 @@ def _threads_of(pid: int) -> list[int]:
 def _affinity(tid: int) -> set[int]:
     try:
         return set(os.sched_getaffinity(tid))
-    except (ProcessLookupError, PermissionError):
+    except OSError:
         return set()
 
 

@@ -2,7 +2,8 @@
 
 `picker` builds the C-speed getter both use to read several signals at once;
 `value_problem` says why a value is not a finite scalar or float array of a
-given size (the text of a component-failure message). No heavy import at
+given size (the text of a component-failure message); `lane_result_problem`
+why a `step_values` result is not a sequence of the outputs' count. No heavy import at
 module level: numpy loads only when a value is actually diagnosed.
 """
 
@@ -55,4 +56,16 @@ def value_problem(value: Any, size: int) -> str:
     if bad.size:
         where = "" if size == 1 else f" at [{bad[0]}]"
         return f"is non-finite{where}: {float(flat[bad[0]])!r}"
+    return ""
+
+
+def lane_result_problem(result: Any, count: int) -> str:
+    """Why `result`, returned by a component's `step_values`, is not a sequence of `count`
+    values, or "" (the same words in-process and in a component process)."""
+    try:
+        got = len(result)
+    except TypeError:
+        return f"step_values returned {type(result).__name__}, expected a sequence of {count} floats"
+    if got != count:
+        return f"step_values returned {got} values for {count} outputs"
     return ""

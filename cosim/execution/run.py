@@ -133,7 +133,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         UserError for anything wrong before tick 0 (scenario, FMU, wiring).
     """
     check_run_options(transport, realtime)
-    one_cpu.parse_setting(lockstep_cpu, "lockstep_cpu")
+    one_cpu.check_setting(lockstep_cpu, "lockstep_cpu")
     limits = limits or RunLimits()
     check_ticks(scenario, limits)  # before the run folder: a refused run leaves nothing
     check_formats(scenario)
@@ -147,9 +147,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         launches = plan_launches(scenario, import_classes=transport != "zenoh")
         launches += _placed_fmu_launches(scenario, placement)
         remote_launches = [launch for launch in launches if launch.name not in in_master]
-        chain_setting = lockstep_cpu if _starts_processes(scenario, transport, remote_launches,
-                                                          placement, prestart) else one_cpu.OFF
-        chain = stack.enter_context(one_cpu.PinnedChain(chain_setting))  # pinned before tick 0
+        chain = stack.enter_context(one_cpu.PinnedChain(lockstep_cpu))  # pinned before tick 0
         out = _make_run_folder(Path(out_dir))
         run_id = prestart.run_id if prestart is not None else uuid.uuid4().hex[:12]
         page = supervisor.current()
@@ -196,18 +194,6 @@ class _Options:
     page: Any  # cosim.execution.supervisor.ControlPage, or None (not supervised)
     observers: tuple[Any, ...] = ()  # more master observers, after the recorder
     chain: Any = None  # cosim.engine.one_cpu.PinnedChain: the CPU of the lockstep chain
-
-
-def _starts_processes(scenario: Any, transport: str, remote_launches: list[Any],
-                      placement: dict[str, str], prestart: Any) -> bool:
-    """Whether the lockstep chain has processes on this machine besides the master's:
-    component processes it spawns (zenoh, not on a worker) or isolated FMUs."""
-    if prestart is not None:
-        return True
-    if transport == "zenoh" and any(launch.name not in placement for launch in remote_launches):
-        return True
-    return any(getattr(spec, "isolate", False) and name not in placement
-               for name, spec in scenario.fmu_components().items())
 
 
 def _make_run_folder(out: Path) -> Path:
@@ -410,8 +396,11 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
                         {n: c.period_ticks for n, c in hosted.items()}, prepared.limits)
     manifest = base_manifest(scenario, prepared, hosted, transport, run_id, master.order)
     manifest["start_time"] = master.t0
-    # everything has started (on every CPU): from tick 0 on, the chain shares one
-    manifest["lockstep_cpu"] = options.chain.pin(_local_processes(hosted, remote)) if options.chain else None
+    # everything has started (on every CPU): from tick 0 on, a chain of several processes
+    # on this machine shares one CPU (a chain of this process alone gains nothing)
+    chain_processes = _local_processes(hosted, remote)
+    manifest["lockstep_cpu"] = (options.chain.pin(chain_processes)
+                                if chain_processes and options.chain else None)
     local = {n for n, c in hosted.items() if fmu_hosting.is_local_call(c)}
     manifest["supervision"] = supervisor.supervision_entry(master.order, local, options.deadlines)
     live = None

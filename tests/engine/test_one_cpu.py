@@ -55,6 +55,7 @@ def test_a_bad_setting_names_the_option_and_the_value(value, problem):
     assert str(caught.value) == f"--lockstep-cpu: {problem}"
 
 
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="Linux CPU affinity")
 def test_off_pins_nothing():
     before = os.sched_getaffinity(0)
     with one_cpu.PinnedChain("off") as chain:
@@ -90,11 +91,48 @@ def test_pin_puts_this_thread_and_what_it_starts_on_one_cpu_and_the_end_restores
 
 
 @needs_two_cpus
-def test_other_threads_of_the_process_keep_their_cpus():
+def test_an_explicit_cpu_is_used_and_one_not_allowed_is_refused():
+    cpu = max(ALLOWED)
+    with one_cpu.PinnedChain(cpu) as chain:
+        assert chain.pin() == cpu and os.sched_getaffinity(0) == {cpu}
+    with pytest.raises(UserError, match=r"lockstep CPU 4096: this process may run only on CPU "):
+        with one_cpu.PinnedChain(4096) as chain:   # (a run checks it first: check_setting)
+            chain.pin()
+    assert one_cpu.pinned_cpu() is None and os.sched_getaffinity(0) == ALLOWED
+
+
+@needs_two_cpus
+def test_a_chain_inside_a_pinned_one_reports_its_cpu_and_leaves_the_restore_to_it():
+    with one_cpu.PinnedChain("auto") as outer:
+        cpu = outer.pin()
+        with one_cpu.PinnedChain("auto") as inner:
+            assert inner.pin() == cpu and inner.cpu is None
+        assert os.sched_getaffinity(0) == {cpu}
+    assert os.sched_getaffinity(0) == ALLOWED
+
+
+@needs_two_cpus
+def test_an_interruption_while_pinning_is_undone_at_the_end(monkeypatch):
+    def interrupted(pid):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(one_cpu, "_threads_of", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        with one_cpu.PinnedChain("auto") as chain:
+            chain.pin([12345])
+    assert os.sched_getaffinity(0) == ALLOWED and one_cpu.pinned_cpu() is None
+
+
+@needs_two_cpus
+@pytest.mark.parametrize("own_pin", [False, True], ids=["unpinned", "pinned by its owner to that CPU"])
+def test_other_threads_of_the_process_keep_their_cpus(own_pin):
+    cpu = max(ALLOWED)
     ready, done = threading.Event(), threading.Event()
     seen: list[set[int]] = []
 
     def bystander() -> None:
+        if own_pin:
+            os.sched_setaffinity(0, {cpu})
         ready.set()
         done.wait(10)
         seen.append(set(os.sched_getaffinity(0)))
@@ -102,32 +140,27 @@ def test_other_threads_of_the_process_keep_their_cpus():
     thread = threading.Thread(target=bystander)
     thread.start()
     ready.wait(10)
-    with one_cpu.PinnedChain("auto") as chain:
-        chain.pin()
-        done.set()
-        thread.join(10)
-    assert seen == [ALLOWED]
-
-
-@needs_two_cpus
-def test_an_explicit_cpu_is_used_and_one_not_allowed_is_refused():
-    cpu = max(ALLOWED)
     with one_cpu.PinnedChain(cpu) as chain:
-        assert chain.pin() == cpu and os.sched_getaffinity(0) == {cpu}
-    with pytest.raises(UserError, match=r"lockstep CPU 4096: this process may run only on CPU "):
-        with one_cpu.PinnedChain(4096) as chain:
-            chain.pin()
-    assert one_cpu.pinned_cpu() is None and os.sched_getaffinity(0) == ALLOWED
+        assert chain.pin() == cpu
+    done.set()
+    thread.join(10)
+    assert seen == [{cpu} if own_pin else ALLOWED]
 
 
-@needs_two_cpus
-def test_a_second_chain_pins_nothing_while_one_is_pinned():
-    with one_cpu.PinnedChain("auto") as outer:
-        cpu = outer.pin()
-        with one_cpu.PinnedChain("auto") as inner:
-            assert inner.pin() is None
-        assert os.sched_getaffinity(0) == {cpu}
-    assert os.sched_getaffinity(0) == ALLOWED
+def test_one_cpu_or_no_affinity_pins_nothing_and_a_cpu_number_is_refused_where_it_cannot_be_had(
+        monkeypatch):
+    monkeypatch.setattr(one_cpu, "supported", lambda: True)
+    monkeypatch.setattr(one_cpu.os, "sched_getaffinity", lambda pid: {0}, raising=False)
+    with one_cpu.PinnedChain("auto") as chain:
+        assert chain.pin() is None              # one CPU: the chain is on it already
+    with pytest.raises(UserError, match=r"^--lockstep-cpu 1: this process may run only on CPU 0$"):
+        one_cpu.check_setting(1)
+    monkeypatch.setattr(one_cpu, "supported", lambda: False)
+    with one_cpu.PinnedChain("auto") as chain:
+        assert chain.pin() is None
+    assert one_cpu.check_setting("auto") == "auto"
+    with pytest.raises(UserError, match=r"^--lockstep-cpu 0: this platform does not let a process"):
+        one_cpu.check_setting(0)
 
 
 def _child_reporting_its_cpus() -> subprocess.Popen:
@@ -170,6 +203,8 @@ def test_an_in_process_run_pins_nothing(tmp_path):
 def test_the_api_refuses_a_bad_setting_before_running(tmp_path):
     with pytest.raises(UserError, match=r"^lockstep_cpu: expected auto, off or a CPU number, got 'x'$"):
         cosim.run(SCENARIO, transport="zenoh", out=tmp_path / "bad", lockstep_cpu="x")
+    with pytest.raises(UserError, match=r"^lockstep_cpu 4096: "):   # whatever the transport
+        cosim.run(SCENARIO, transport="inproc", out=tmp_path / "bad", lockstep_cpu=4096)
     assert not (tmp_path / "bad").exists()
 
 

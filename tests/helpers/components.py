@@ -293,3 +293,32 @@ class TrackerWithoutLane(Tracker):
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         values = Tracker.step_values(self, t, tuple(inputs[name] for name in self.input_names))
         return dict(zip(self.output_names, values))
+
+
+class InputOrder(Component):
+    """Outputs the order its inputs mapping iterates in, as digits (a=1, w=2, b=3): what a
+    component that loops over `inputs` sees must not depend on the transport."""
+
+    inputs = (Port("a"), Port("w", size=3), Port("b"))
+    outputs = (Port("order"),)
+    DIGITS = {"a": "1", "w": "2", "b": "3"}
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        return {"order": float("".join(self.DIGITS[name] for name in inputs))}
+
+
+class ShortLane(Tracker):
+    """Tracker whose `step_values` returns one value too few (or a generator, `generator=True`);
+    its `step` (hence its initialization) is Tracker's."""
+
+    def __init__(self, generator: bool = False) -> None:
+        super().__init__()
+        self.generator = generator
+
+    def step_values(self, t: float, inputs: tuple):
+        values = Tracker.step_values(self, t, inputs)
+        return (v for v in values) if self.generator else values[:-1]
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        values = Tracker.step_values(self, t, tuple(inputs[name] for name in self.input_names))
+        return dict(zip(self.output_names, values))

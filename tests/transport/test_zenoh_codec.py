@@ -46,6 +46,7 @@ def test_array_layout_is_mask_scalars_then_arrays_and_exact():
     assert message[HEADER.size:HEADER.size + 8] == bytes([1, 1, 0, 0, 0, 0, 0, 0])
     assert message[HEADER.size + 8:] == flat[[0, 4, 1, 2, 3, 5, 6]].astype("<f8").tobytes()
     decoded = receiver.decode(message)
+    assert list(decoded) == ["a", "c", "b", "d"]   # scalars, then arrays: as the in-process master
     assert isinstance(decoded["a"], float) and isinstance(decoded["c"], float)
     assert decoded["b"].shape == (3,) and not decoded["b"].flags.writeable
     assert np.concatenate([[decoded["a"]], decoded["b"], [decoded["c"]], decoded["d"]]).tobytes() \

@@ -167,6 +167,24 @@ def test_a_bad_output_of_step_values_is_named_as_in_process(bad, cause):
     assert str(zenoh) == str(inproc)
 
 
+@pytest.mark.parametrize("generator, cause", [
+    (False, "step_values returned 2 values for 3 outputs"),
+    (True, "step_values returned generator, expected a sequence of 3 floats")])
+def test_a_step_values_result_of_the_wrong_shape_is_named_as_in_process(generator, cause):
+    from cosim.engine.master import Master
+
+    spec = launch("track", "ShortLane", generator=generator)
+    failures = []
+    for hosts in (lambda: contextlib.nullcontext({"track": InprocComponent(spec)}),
+                  lambda: _components(ZenohComponents([spec], f"t-short-{os.getpid()}"))):
+        with hosts() as hosted, pytest.raises(ComponentFailure) as caught:
+            Master(hosted, [], TICK, 10, 0.0, []).run()
+        failures.append(caught.value)
+    inproc, zenoh = failures
+    assert (zenoh.component, zenoh.tick, zenoh.cause) == ("track", 1, cause)
+    assert str(zenoh) == str(inproc)
+
+
 @contextlib.contextmanager
 def _components(host: ZenohComponents):
     with host:

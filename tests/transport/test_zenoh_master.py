@@ -42,8 +42,12 @@ class Tape:
 
 
 def run(hosted, ticks: int) -> tuple[Tape, Master]:
+    return run_with(hosted, EDGES, ticks)
+
+
+def run_with(hosted, edges, ticks: int) -> tuple[Tape, Master]:
     tape = Tape()
-    master = Master(hosted, EDGES, 0.01, ticks, 0.0, [tape])
+    master = Master(hosted, edges, 0.01, ticks, 0.0, [tape])
     master.run()
     master.stop_all()
     return tape, master
@@ -60,3 +64,15 @@ def test_master_over_zenoh_matches_inproc_bit_for_bit():
     assert len(zenoh.rows) == 201
     assert zenoh.rows == inproc.rows
     assert run_processes(run_id) == []
+
+
+def test_a_component_iterates_its_inputs_in_the_same_order_on_both_transports():
+    spec = launch("probe", "InputOrder")
+    edges = [Edge("m1", "y", "probe", "a"), Edge("m1", "z", "probe", "w"), Edge("m1", "y", "probe", "b")]
+    specs = [launch("m1", "Mixer", gain=0.5), spec]
+    inproc, in_master = run_with({s.name: InprocComponent(s) for s in specs}, edges, 5)
+    with ZenohComponents(specs, f"t-order-{os.getpid()}") as hosted:
+        zenoh, zenoh_master = run_with(hosted.components, edges, 5)
+    assert in_master.value("probe", "order") == 132.0          # scalars a, b, then the array w
+    assert zenoh_master.value("probe", "order") == 132.0
+    assert zenoh.rows == inproc.rows

@@ -59,6 +59,11 @@ class Layout:
         self._scalar_at = tuple(i for i, p in enumerate(self.ports) if p.size == 1)  # declared positions
         self._array_at = tuple(i for i, p in enumerate(self.ports) if p.size > 1)
         self._scalars_of = picker(self._scalar_at)  # the scalars of a declared-order sequence
+        # `decode`'s mapping: the scalars, then the arrays, as the in-process master builds it
+        # (a component that iterates its inputs sees the same order on both transports)
+        mapping_order = self._scalar_at + self._array_at
+        self._mapping_names = tuple(self.names[i] for i in mapping_order)
+        self._in_mapping_order = picker(mapping_order)
         self._arrays = tuple((p.name, p.size) for p in self.ports if p.size > 1)
         self._mask_size = -(-len(self._arrays) // 8) * 8
         self._scalars = struct.Struct(f"<{len(self._scalar_at)}d")
@@ -158,8 +163,9 @@ class Layout:
         return data
 
     def decode(self, data: bytes) -> dict[str, Value]:
-        """The port values of a message made by `encode` (floats, read-only arrays)."""
-        return dict(zip(self.names, self.decode_values(data)))
+        """The port values of a message made by `encode` (floats, read-only arrays), the
+        scalars first, then the arrays (each in declared order)."""
+        return dict(zip(self._mapping_names, self._in_mapping_order(self.decode_values(data))))
 
     def decode_values(self, data: bytes) -> tuple[Value, ...]:
         """The port values of a message, in declared order (the values lane)."""

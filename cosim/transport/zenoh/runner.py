@@ -42,6 +42,7 @@ from cosim.errors import UserError
 from cosim.transport.inproc import (ParameterProblem, PythonComponentLaunch, construct_component,
                           describe_exception)
 from cosim.engine.startup import process_age_s
+from cosim.engine.values import lane_result_problem
 from cosim.transport.zenoh import auth, config
 from cosim.transport.zenoh.auth import Credential
 from cosim.transport.zenoh.codec import (CodecError, Kind, Layout, HEADER, decode_json,
@@ -111,9 +112,11 @@ class _Server:
             # bound once: the step path below is the per-tick hot path; a component with
             # `step_values` (scalar outputs) is stepped on the values in declared order
             lane = values_step(self.component)
+            self._lane_count: int | None = None  # outputs a step_values result must hold
             if lane is not None:
                 self._decode, self._encode = self.in_layout.decode_values, self.out_layout.encode_values
                 self._step_component = lane
+                self._lane_count = len(self.component.outputs)
             else:
                 self._decode, self._encode = self.in_layout.decode, self.out_layout.encode
                 self._step_component = self.component.step
@@ -127,6 +130,8 @@ class _Server:
             except Exception as exc:  # user code: the master reports it with tick and time
                 cause = describe_exception(exc)
                 return encode_json(Kind.ERROR, seq, tick, t, {"cause": cause}), False
+            if self._lane_count is not None and (problem := lane_result_problem(outputs, self._lane_count)):
+                return encode_json(Kind.ERROR, seq, tick, t, {"cause": problem}), False
             try:
                 return self._encode(_OUTPUTS, seq, tick, t, outputs, True), False
             except CodecError as exc:
