@@ -1,7 +1,7 @@
 """`cosim sweep` throughput against the number of Dask workers (1 vs 2) on a LocalCluster.
 
-For each worker count, a LocalCluster (one thread per worker process, as
-`cosim sweep` makes it) is started once and warmed up: one short sample pinned
+For each worker count, a LocalCluster (one thread per worker process, each
+process on its own CPU when there are several, as `cosim sweep` makes it) is started once and warmed up: one short sample pinned
 to each worker, then one small sweep (each worker imports the platform and the
 scenario's classes, builds its FMU cache entry, reads the scenario and the
 FMU's description and lays out the planner's routes: what every later sample

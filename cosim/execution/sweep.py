@@ -170,8 +170,9 @@ def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: 
     from cosim.execution.run import run_scenario
     from cosim.scenario.loader import load_scenario
 
-    # samples run side by side, one per worker: each pinning its chain to the CPU its worker
-    # happens to be on could put two on one CPU and leave another idle; the OS spreads them
+    # samples run side by side, one per worker: the run does not choose a CPU itself (two
+    # could choose the same one); the worker's own CPU, if it has one (worker_cpus), holds the
+    # sample's processes too, since they start from the worker's thread
     result = run_scenario(load_scenario(scenario_path, list(overrides)), out_dir=run_dir,
                           transport=transport, progress=False, lockstep_cpu="off")
     if result.status != "ok":
@@ -330,7 +331,7 @@ CLUSTER_CONFIG = {"distributed.admin.tick.interval": "1s",
 
 def local_cluster(workers: int, **options: Any) -> Any:
     """The `distributed.LocalCluster` a sweep starts: `workers` processes of one thread each,
-    no dashboard, quiet logs, Dask's periodic work slowed (`CLUSTER_CONFIG`), the scheduler's
+    each on its own CPU (`cosim.execution.worker_cpus`), no dashboard, quiet logs, Dask's periodic work slowed (`CLUSTER_CONFIG`), the scheduler's
     streams to the workers batched every `BATCH_INTERVAL`; `options` are more LocalCluster
     keyword arguments (e.g. processes=False)."""
     import dask
@@ -339,6 +340,10 @@ def local_cluster(workers: int, **options: Any) -> Any:
 
     settings = {"n_workers": workers, "threads_per_worker": 1, "processes": True,
                 "dashboard_address": None, "silence_logs": logging.ERROR, **options}
+    if "plugins" not in settings:  # each worker process on its own CPU (worker_cpus)
+        from cosim.execution.worker_cpus import worker_plugins
+
+        settings["plugins"] = worker_plugins(workers, bool(settings["processes"]))
     # the scheduler's streams to its workers are made as the workers join, within the block
     with dask.config.set(CLUSTER_CONFIG), _batches_every(distributed.scheduler, BATCH_INTERVAL):
         return LocalCluster(**settings)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -430,3 +431,35 @@ def test_the_samples_are_awaited_through_the_sweeps_own_client(tmp_path, monkeyp
         [(current, owners)] = waited_with
         assert current is not callers and owners == {current}
     assert outcomes == [("ok", {"x": 0.0}, ""), ("ok", {"x": 2.0}, "")]
+
+
+ALLOWED_CPUS = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+
+
+@pytest.mark.skipif(len(ALLOWED_CPUS) < 2, reason="needs Linux and two CPUs this process may use")
+def test_each_worker_process_of_a_sweeps_cluster_runs_on_its_own_cpu():
+    from distributed import Client
+
+    from cosim.execution.sweep import local_cluster
+
+    def cpus() -> list[int]:
+        import threading
+        return sorted(os.sched_getaffinity(threading.get_native_id()))
+
+    with local_cluster(2) as cluster, Client(cluster) as client:
+        by_worker = client.run(cpus)                         # the worker's own thread
+        in_tasks = client.gather(client.map(lambda _: cpus(), range(6), pure=False))
+    assert sorted(map(tuple, by_worker.values())) == [(ALLOWED_CPUS[0],), (ALLOWED_CPUS[1],)]
+    assert {tuple(c) for c in in_tasks} <= {(ALLOWED_CPUS[0],), (ALLOWED_CPUS[1],)}
+    assert sorted(os.sched_getaffinity(0)) == ALLOWED_CPUS  # the sweep's own process keeps them all
+
+
+def test_a_cpu_per_worker_only_for_worker_processes_that_fit_the_cpus():
+    from cosim.execution.worker_cpus import OwnCpu, worker_plugins
+
+    assert worker_plugins(2, processes=False) == set()      # threads of this process: never
+    assert worker_plugins(1, processes=True) == set()       # one worker: nothing to keep apart
+    assert worker_plugins(len(ALLOWED_CPUS) + 1, processes=True) == set()
+    if len(ALLOWED_CPUS) >= 2:
+        (plugin,) = worker_plugins(2, processes=True)
+        assert isinstance(plugin, OwnCpu) and plugin.cpus == ALLOWED_CPUS
