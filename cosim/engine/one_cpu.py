@@ -6,22 +6,26 @@ the master's next request. Every message wakes a thread that waited. When the
 waker and the woken run on different CPUs, the wake-up goes through the other
 CPU's idle state; on a virtual machine whose idle CPUs halt (no halt polling)
 that costs tens of microseconds per wake-up, several per message. Measured on
-the development VM (2 vCPUs, `satory_nominal` over Zenoh, 6000 ticks): 305
-us/tick with the processes where the OS puts them, 198 us/tick with all of
-them on one CPU; a raw put/subscribe round trip 145 vs 36-56 us.
+the development VM (2 vCPUs, `cosim run satory_nominal` over Zenoh, 6000 ticks):
+295-315 us/tick with the processes where the OS puts them, 150-160 us/tick on
+one CPU; a raw put/subscribe round trip 143-152 vs 36-56 us.
 
-`PinnedChain` restricts the calling thread and Zenoh's runtime threads (if
-the process has them already) to one CPU; the processes and threads that
-thread then starts inherit it (component processes, isolated FMU hosts,
-Zenoh's runtime threads of a first session). Other threads of the process
-(a notebook's, the Foxglove server's) keep their CPUs. It restores the CPUs of
-every thread it pinned, and of those born pinned meanwhile, when it ends. `release` gives a helper process that is not in the chain (the
-recorder's writer) the other CPUs back, so it does not compete with the chain.
+`PinnedChain.pin` is called once the run has started everything (start-up,
+imports in every process at once, uses every CPU: pinned from the spawn, tick
+0 came 0.15 s later), just before tick 0: it puts the calling thread, Zenoh's
+runtime threads and every thread of the chain's other processes (components,
+isolated FMU hosts, by pid) on one CPU; threads they start later inherit it.
+Other threads of the master's process (a notebook's, the Foxglove server's)
+keep their CPUs. When the context ends it restores the CPUs of every thread
+of this process it pinned, and widens those born pinned meanwhile. `release`
+gives a helper process started during the run that is not in the chain (the
+recorder's writer) the other CPUs, so it does not compete with the chain.
 
-The setting is "auto" (the CPU this thread runs on now: the OS put it where it
-found room, so two runs started side by side land on different CPUs), "off"
-(the OS places everything), or a CPU number. Linux only; elsewhere every
-setting is "off".
+The setting is "auto" (the CPU the master's thread runs on at tick 0: the OS
+put it where it found room, so two runs started side by side land on
+different CPUs), "off" (the OS places everything), or a CPU number
+(`check_setting` refuses one this process may not use). Linux only: elsewhere
+"auto" pins nothing and a CPU number is refused.
 """
 
 from __future__ import annotations
