@@ -123,9 +123,9 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         on_warning: prints one interface-gap warning (once each, before tick 0).
         before_tick0: called once everything is hosted, just before the master starts
             (`cosim run` raises there a Ctrl-C that a library swallowed during start-up).
-        lockstep_cpu: "auto", "off" or a CPU number: where the master and the component
-            processes it starts run when there are any (`cosim.engine.one_cpu`); the
-            manifest's `lockstep_cpu` says which CPU, null for none.
+        lockstep_cpu: "auto", "off" or a CPU number: from tick 0, the one CPU of the master
+            and of the processes it started, when there are any (`cosim.engine.one_cpu`);
+            the manifest's `lockstep_cpu` says which CPU, null for none.
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
