@@ -84,11 +84,16 @@ FLOOR_OF = {"zenoh loop": "raw round trip", PLANNER_IN_MASTER: "raw round trip",
 CHAIN_CPU = one_cpu.current_cpu() if one_cpu.supported() else None
 
 
+def _chain_setting(pin: bool) -> int | str:
+    """The lockstep chain's CPU, or off (`pin` False, or a platform without CPU affinity)."""
+    return CHAIN_CPU if pin and CHAIN_CPU is not None else one_cpu.OFF
+
+
 @contextlib.contextmanager
 def on_chain_cpu(pin: bool = True, processes: tuple[int, ...] = ()):
     """This thread, `processes` and what starts inside on the lockstep chain's CPU (`cosim run`'s
-    default), or nothing pinned (`pin` False, or a platform without CPU affinity)."""
-    with one_cpu.PinnedChain(CHAIN_CPU if pin and CHAIN_CPU is not None else one_cpu.OFF) as chain:
+    default), or nothing pinned (see `_chain_setting`)."""
+    with one_cpu.PinnedChain(_chain_setting(pin)) as chain:
         chain.pin(processes)
         yield chain
 
@@ -163,8 +168,7 @@ def zenoh_loop(prepared, hosts_class=None, endpoint: str | None = None,
 
     cls = hosts_class or ZenohComponents
     own = [launch for launch in prepared.launches if launch.name not in in_master]
-    setting = CHAIN_CPU if pin and CHAIN_CPU is not None else one_cpu.OFF
-    with one_cpu.PinnedChain(setting) as chain, \
+    with one_cpu.PinnedChain(_chain_setting(pin)) as chain, \
             cls(own, run_id=f"bench{uuid.uuid4().hex[:8]}", endpoint=endpoint) as remote:
         chain.pin(remote.local_pids())  # once all have started, as `cosim run` does
         pids = [os.getpid(), *remote.pids.values()]

@@ -197,10 +197,9 @@ def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
         before tick 0, with the message `cosim run` prints.
     """
     from cosim.execution.finish import analyse_run_folder
+    from cosim.engine.one_cpu import check_setting
     from cosim.execution.run import check_run_options, run_scenario
     from cosim.results.folders import stamped_folder
-
-    from cosim.engine.one_cpu import check_setting
 
     check_run_options(transport, None)
     check_setting(lockstep_cpu, "lockstep_cpu")

@@ -82,11 +82,14 @@ def check_setting(setting: Setting, source: str = "--lockstep-cpu") -> Setting:
         if not supported():
             raise UserError(f"{source} {setting}: this platform does not let a process choose "
                             f"its CPUs (Linux does); use auto or off")
-        allowed = set(os.sched_getaffinity(0))
-        if setting not in allowed:
-            names = ", ".join(str(c) for c in sorted(allowed))
-            raise UserError(f"{source} {setting}: this process may run only on CPU {names}")
+        _refuse_unless_allowed(setting, set(os.sched_getaffinity(0)), source)
     return setting
+
+
+def _refuse_unless_allowed(cpu: int, allowed: set[int], label: str) -> None:
+    if cpu not in allowed:
+        names = ", ".join(str(c) for c in sorted(allowed))
+        raise UserError(f"{label} {cpu}: this process may run only on CPU {names}")
 
 
 def supported() -> bool:
@@ -183,10 +186,7 @@ class PinnedChain:
 
     def _choose(self) -> int | None:
         if isinstance(self.setting, int):
-            if self.setting not in self._allowed:
-                allowed = ", ".join(str(c) for c in sorted(self._allowed))
-                raise UserError(f"lockstep CPU {self.setting}: this process may run only on "
-                                f"CPU {allowed}")
+            _refuse_unless_allowed(self.setting, self._allowed, "lockstep CPU")
             return self.setting
         if len(self._allowed) < 2:
             return None  # one CPU: the chain is on it already
@@ -236,6 +236,5 @@ def release(pid: int) -> None:
 
     Its later threads inherit them; call it right after the process starts.
     """
-    if _active is None or _active.cpu is None:
-        return
-    _set(_threads_of(pid), _active.others())
+    if _active is not None:  # set only while a chain is pinned
+        _set(_threads_of(pid), _active.others())

@@ -331,9 +331,10 @@ CLUSTER_CONFIG = {"distributed.admin.tick.interval": "1s",
 
 def local_cluster(workers: int, **options: Any) -> Any:
     """The `distributed.LocalCluster` a sweep starts: `workers` processes of one thread each,
-    each on its own CPU (`cosim.execution.worker_cpus`), no dashboard, quiet logs, Dask's periodic work slowed (`CLUSTER_CONFIG`), the scheduler's
-    streams to the workers batched every `BATCH_INTERVAL`; `options` are more LocalCluster
-    keyword arguments (e.g. processes=False)."""
+    each on its own CPU (`cosim.execution.worker_cpus`), no dashboard, quiet logs, Dask's
+    periodic work slowed (`CLUSTER_CONFIG`), the scheduler's streams to the workers batched
+    every `BATCH_INTERVAL`; `options` are more LocalCluster keyword arguments (e.g.
+    processes=False)."""
     import dask
     import distributed.scheduler
     from distributed import LocalCluster
