@@ -17,6 +17,11 @@ alternating repetitions of five cases measured in the same run:
 - `cosim run zenoh`: `run_scenario(..., transport="zenoh")` as `cosim run`
   does it (recorder with its writer process, live publisher), ticks 1..N only
   (`RunResult.loop_time_s`), like the `zenoh loop` case;
+- `cosim run CLI` and `cosim run CLI, default pools`: the `cosim` command
+  itself in a fresh process, as it comes (Zenoh's runtime on one thread in
+  every process of the run, `cosim.transport.zenoh.runtime`) and with Zenoh's
+  default runtime pools (`ZENOH_RUNTIME='()'`), ticks 1..N from its manifest;
+  a process chooses its runtime once, so these two are child processes;
 - `raw round trip`: a 100-byte put/subscribe round trip between this process
   and an echo process (benchmarks/bench_zenoh.py's pair), median of a block,
   both processes on the chain's CPU; `raw round trip, OS placement`: another
@@ -64,6 +69,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.bench_startup import run_once  # noqa: E402
 from benchmarks.bench_zenoh import RawPair  # noqa: E402
 from cosim.engine import one_cpu  # noqa: E402
 from benchmarks.common import (emit_results, load_average, min_and_median, table_row,  # noqa: E402
@@ -76,8 +82,9 @@ CPU_INPROC, CPU_ZENOH = "inproc loop, CPU", "zenoh loop, CPU of all processes"
 CPU_RAW = "raw round trip, CPU of both processes"
 PLANNER_IN_MASTER = "zenoh loop, planner inproc"
 OS_LOOP, OS_RAW = "zenoh loop, OS placement", "raw round trip, OS placement"
-CASES = ("inproc loop", "zenoh loop", OS_LOOP, PLANNER_IN_MASTER, "cosim run zenoh", "raw round trip",
-         OS_RAW, CPU_INPROC, CPU_ZENOH, CPU_RAW)
+CLI_RUN, POOLS_RUN = "cosim run CLI", "cosim run CLI, default pools"
+CASES = ("inproc loop", "zenoh loop", OS_LOOP, PLANNER_IN_MASTER, "cosim run zenoh", CLI_RUN, POOLS_RUN,
+         "raw round trip", OS_RAW, CPU_INPROC, CPU_ZENOH, CPU_RAW)
 # each loop case against the round trip placed as it is
 FLOOR_OF = {"zenoh loop": "raw round trip", PLANNER_IN_MASTER: "raw round trip",
             "cosim run zenoh": "raw round trip", OS_LOOP: OS_RAW}
@@ -190,11 +197,25 @@ def cosim_run_zenoh(prepared) -> float:
     return result.loop_time_s / result.ticks
 
 
+def cosim_run_cli(seconds: float, pools: bool) -> float:
+    """`cosim run` over Zenoh in its own process, with one runtime thread (as it comes) or
+    Zenoh's default pools: seconds per tick of ticks 1..N (its manifest's `loop_time_s`)."""
+    from cosim.transport.zenoh import runtime
+
+    env = {k: v for k, v in os.environ.items() if k != runtime.ENV}
+    if pools:
+        env[runtime.ENV] = runtime.DEFAULT_POOLS
+    with tempfile.TemporaryDirectory(prefix="bench-cl-cli-") as tmp:
+        manifest = run_once(SCENARIO, "zenoh", Path(tmp) / "run", seconds, env)
+    return manifest["loop_time_s"] / manifest["ticks"]
+
+
 def measure(seconds: float, repeats: int, hosts_class=None, endpoint_host: str = "127.0.0.1",
             echo_wrap: tuple[str, ...] = (), full_run: bool = True) -> dict[str, list[float]]:
     """The cases, alternated `repeats` times: label -> seconds per tick (or per round trip)."""
     prepared = prepared_run(seconds)
-    samples: dict[str, list[float]] = {c: [] for c in CASES if full_run or c != "cosim run zenoh"}
+    samples: dict[str, list[float]] = {c: [] for c in CASES
+                                       if full_run or c not in ("cosim run zenoh", CLI_RUN, POOLS_RUN)}
     with RawPair(endpoint_host, echo_wrap) as pinned_pair, RawPair(endpoint_host, echo_wrap) as os_pair:
         _alternate(prepared, repeats, samples, pinned_pair, os_pair, hosts_class, endpoint_host,
                    full_run)
@@ -232,6 +253,8 @@ def _alternate(prepared, repeats: int, samples: dict[str, list[float]], pinned_p
                 raise SystemExit(f"CHECK FAILED: {what} and inproc signal stores differ ({differ} values)")
         if full_run:
             samples["cosim run zenoh"].append(cosim_run_zenoh(prepared))
+            samples[CLI_RUN].append(cosim_run_cli(prepared.scenario.duration, pools=False))
+            samples[POOLS_RUN].append(cosim_run_cli(prepared.scenario.duration, pools=True))
         pids = [os.getpid(), pinned_pair.child.pid]
         cpu = _cpu_seconds(pids)
         with on_chain_cpu(processes=pinned):
@@ -264,6 +287,10 @@ def summarize(samples: dict[str, list[float]], where: str) -> dict[str, float]:
                 ratio = figures[f"ratio {case} to the OS-placed floor {stat}"] = figures[f"{case} {stat}"] / floor
                 print(f"{where}, {stat}s: {case} (one CPU) / (inproc tick + 1 {OS_RAW} = {floor:.1f} us) "
                       f"= {ratio:.2f}")
+        if f"{POOLS_RUN} {stat}" in figures:
+            gain = figures[f"one runtime thread {stat}"] = (figures[f"{POOLS_RUN} {stat}"]
+                                                            / figures[f"{CLI_RUN} {stat}"])
+            print(f"{where}, {stat}s: cosim run, Zenoh's default pools / one runtime thread = {gain:.2f}")
         if f"zenoh loop {stat}" in figures:
             speedup = figures[f"speed-up of one CPU {stat}"] = (figures[f"{OS_LOOP} {stat}"]
                                                                 / figures[f"zenoh loop {stat}"])
@@ -387,6 +414,11 @@ def table_rows(where: str, f: dict[str, float]) -> list[dict]:
             rows.append(table_row(f"Satory loop over Zenoh ({what}, {where}) / (in-process tick + 1 OS-placed "
                                   f"raw round trip: the floor as the issue defined it, placed unlike the loop)",
                                   f"{f[f'{case} median']:.0f} µs/tick vs {floor}: {ratio:.2f}", "-", None))
+    if "one runtime thread median" in f:
+        rows.append(table_row(f"`cosim run` over Zenoh ({where}): Zenoh's default runtime pools / one "
+                              f"runtime thread (as it comes)",
+                              f"{f[f'{POOLS_RUN} median']:.0f} vs {f[f'{CLI_RUN} median']:.0f} µs/tick: "
+                              f"{f['one runtime thread median']:.2f}x", "-", None))
     if "speed-up of one CPU median" in f:
         rows.append(table_row(f"Satory loop over Zenoh ({where}): OS placement / one CPU",
                               f"{f['speed-up of one CPU median']:.2f}x", "-", None))

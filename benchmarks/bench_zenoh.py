@@ -14,7 +14,12 @@ is about a quarter, and what our stack adds to it (codec, the component's
 Python, a process with more code and data to bring back into the caches) weighs
 the more.
 
-    PYTHONPATH=. .venv/bin/python benchmarks/bench_zenoh.py [--ticks 5000]
+Every process runs Zenoh's runtime on one thread, as a run's processes do
+(cosim.transport.zenoh.runtime). The same four measurements are then made again
+in a child process with Zenoh's default pools (`ZENOH_RUNTIME='()'`, rows (p)),
+and the speed-up of one thread over them is printed.
+
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_zenoh.py [--ticks 5000] [--no-pools]
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ import numpy as np
 import zenoh
 
 from cosim.transport.inproc import PythonComponentLaunch
-from cosim.transport.zenoh import ZenohComponents, config
+from cosim.transport.zenoh import ZenohComponents, config, runtime
 
 PING, PONG = "bench/raw/ping", "bench/raw/pong"
 
@@ -59,11 +64,13 @@ class RawPair:
 
     def __enter__(self) -> "RawPair":
         endpoint = config.free_tcp_endpoint(self.host)
-        self.session = zenoh.open(config.master_config(endpoint))
+        with runtime.first_session():  # the runtime of a run's processes, as a floor should
+            self.session = zenoh.open(config.master_config(endpoint))
         self.pongs = self.session.declare_subscriber(PONG)
         self.ping = self.session.declare_publisher(PING)
+        env = runtime.child_environment({**os.environ, "PYTHONPATH": _pythonpath()})
         self.child = subprocess.Popen([*self.wrap, sys.executable, __file__, "--echo", endpoint],
-                                      env={**os.environ, "PYTHONPATH": _pythonpath()})
+                                      env=env)
         self.payload = bytes(range(100))
         while True:  # handshake: retry until the echo answers
             self.ping.put(self.payload)
@@ -164,27 +171,70 @@ def _summary(label: str, times: np.ndarray) -> tuple[float, float]:
     return median, p99
 
 
+def measure_both(ticks: int, blocks: int, tag: tuple[str, str, str, str]) -> dict[str, float]:
+    """Both placements; prints the rows labelled `tag` (raw, tick, raw one CPU, tick one
+    CPU) and returns their medians in us by tag (the one-CPU ones only where available)."""
+    medians = {}
+    raw, tick, _ = measure_interleaved(ticks, blocks)
+    medians[tag[0]], _ = _summary(f"({tag[0]}) raw put/sub round trip, 100 B", raw)
+    medians[tag[1]], _ = _summary(f"({tag[1]}) lockstep tick, 1 component", tick)
+    raw, tick, pinned = measure_interleaved(ticks, blocks, one_cpu=True)
+    if pinned:
+        medians[tag[2]], _ = _summary(f"({tag[2]}) the same on one CPU", raw)
+        medians[tag[3]], _ = _summary(f"({tag[3]}) the same on one CPU", tick)
+    return medians
+
+
+def default_pools(ticks: int, blocks: int) -> dict[str, float]:
+    """The same measurements in a child process with Zenoh's default runtime pools."""
+    env = {**os.environ, "PYTHONPATH": _pythonpath(), runtime.ENV: runtime.DEFAULT_POOLS}
+    done = subprocess.run([sys.executable, __file__, "--ticks", str(ticks), "--blocks", str(blocks),
+                           "--pools-child"], env=env, capture_output=True, text=True)
+    print("".join(line for line in done.stdout.splitlines(keepends=True)
+                  if not line.startswith("median ")), end="")
+    if done.returncode != 0:
+        print(f"default pools: the child failed ({done.returncode}): {done.stderr.strip()[-300:]}")
+        return {}
+    return {k: float(v) for k, v in (line.split("=", 1) for line in done.stdout.splitlines()
+                                     if line.startswith("median "))
+            for k in [k.removeprefix("median ")]}
+
+
 def main() -> None:
     """Run both measurements and print them with their ratio."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ticks", type=int, default=5000, help="measured exchanges per case")
     parser.add_argument("--blocks", type=int, default=20, help="alternations raw/tick")
+    parser.add_argument("--pools", action=argparse.BooleanOptionalAction, default=True,
+                        help="also measure Zenoh's default runtime pools (a child process)")
     parser.add_argument("--echo", metavar="ENDPOINT", help=argparse.SUPPRESS)
+    parser.add_argument("--pools-child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.echo:
         echo(args.echo)
         return
-    raw, tick, _ = measure_interleaved(args.ticks, args.blocks)
-    raw_median, _ = _summary("(a) raw put/sub round trip, 100 B", raw)
-    tick_median, _ = _summary("(b) lockstep tick, 1 component", tick)
-    print(f"ratio tick / raw (medians): {tick_median / raw_median:.2f}  (target <= 1.25)")
-    raw, tick, pinned = measure_interleaved(args.ticks, args.blocks, one_cpu=True)
-    if not pinned:
-        print("one CPU: not available here (no CPU affinity, or a single CPU)")
+    if args.pools_child:
+        for key, value in measure_both(args.ticks, args.blocks, ("p", "q", "p1", "q1")).items():
+            print(f"median {key}={value}")
         return
-    raw_median, _ = _summary("(a1) the same on one CPU", raw)
-    tick_median, _ = _summary("(b1) the same on one CPU", tick)
-    print(f"ratio tick / raw on one CPU (medians): {tick_median / raw_median:.2f}  (target <= 1.25)")
+    ours = measure_both(args.ticks, args.blocks, ("a", "b", "a1", "b1"))
+    print(f"ratio tick / raw (medians): {ours['b'] / ours['a']:.2f}  (target <= 1.25)")
+    if "a1" not in ours:
+        print("one CPU: not available here (no CPU affinity, or a single CPU)")
+    else:
+        print(f"ratio tick / raw on one CPU (medians): {ours['b1'] / ours['a1']:.2f}  "
+              f"(target <= 1.25)")
+    if not args.pools:
+        return
+    print("with Zenoh's default runtime pools (ZENOH_RUNTIME='()'), in a child process:")
+    pools = default_pools(args.ticks, args.blocks)
+    for ours_key, pools_key, what in (("a", "p", "raw round trip"), ("b", "q", "lockstep tick"),
+                                      ("a1", "p1", "raw round trip on one CPU"),
+                                      ("b1", "q1", "lockstep tick on one CPU")):
+        if ours_key in ours and pools_key in pools:
+            print(f"default pools / one runtime thread, {what}: "
+                  f"{pools[pools_key]:.1f} / {ours[ours_key]:.1f} us = "
+                  f"{pools[pools_key] / ours[ours_key]:.2f}x")
 
 
 if __name__ == "__main__":

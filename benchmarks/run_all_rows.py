@@ -105,6 +105,14 @@ def zenoh(out: str) -> list[dict]:
         value = float(ratio.group(1))
         rows.append(table_row("the same, every process on one CPU (as `cosim run` from tick 0)",
                               f"{tick.group(1)} vs {raw.group(1)} µs: {value:.2f}", "<= 1.25", value <= 1.25))
+    for what, label in (("lockstep tick", "processes where the OS puts them"),
+                        ("lockstep tick on one CPU", "every process on one CPU")):
+        found = _find(rf"^default pools / one runtime thread, {what}: {FLOAT} / {FLOAT} us = {FLOAT}x", out)
+        if found:
+            rows.append(table_row(f"the same tick, Zenoh's default runtime pools / one runtime thread "
+                                  f"(as a run's processes), {label}",
+                                  f"{found.group(1)} vs {found.group(2)} µs: {float(found.group(3)):.2f}x",
+                                  "-", None))
     return rows
 
 

@@ -101,6 +101,19 @@ def test_an_output_reader_takes_the_printed_figures():
     assert one_cpu["figure"] == "67.3 vs 36.4 µs: 1.85" and one_cpu["met"] is False
 
 
+ZENOH_POOLS = """default pools / one runtime thread, raw round trip: 181.5 / 105.5 us = 1.72x
+default pools / one runtime thread, lockstep tick: 195.7 / 107.2 us = 1.83x
+default pools / one runtime thread, lockstep tick on one CPU: 74.1 / 44.8 us = 1.65x
+"""
+
+
+def test_the_zenoh_reader_takes_the_default_pools_comparison():
+    rows = run_all_rows.zenoh(ZENOH_OUTPUT + ZENOH_ONE_CPU + ZENOH_POOLS)
+    assert [r["figure"] for r in rows[2:]] == ["195.7 vs 107.2 µs: 1.83x", "74.1 vs 44.8 µs: 1.65x"]
+    assert "where the OS puts them" in rows[2]["measure"] and "one CPU" in rows[3]["measure"]
+    assert all(r["met"] is None for r in rows[2:])
+
+
 def test_an_output_reader_finds_nothing_in_a_changed_format():
     assert run_all_rows.zenoh("ratio: 1.2\n") == []
     assert run_all_rows.closed_loop("") == [] and run_all_rows.master_overhead("") == []

@@ -28,7 +28,7 @@ import zenoh
 
 from cosim.errors import ComponentFailure, UserError
 from cosim.transport.launch import PythonComponentLaunch
-from cosim.transport.zenoh import auth, config
+from cosim.transport.zenoh import auth, config, runtime
 from cosim.transport.zenoh.auth import Credential, Dictionary, new_credential
 from cosim.transport.zenoh.processes import ChildProcess, reap
 from cosim.transport.zenoh.wire import HEADER, CodecError, Kind, decode_json, encode_json, header_tick
@@ -253,7 +253,8 @@ class ZenohComponents:
         for attempt in range(attempts):
             endpoint = self.endpoint or config.free_tcp_endpoint()
             try:
-                self.session = zenoh.open(self._session_config(endpoint))
+                with runtime.first_session():  # one runtime thread, if this is the first
+                    self.session = zenoh.open(self._session_config(endpoint))
             except zenoh.ZError as exc:
                 if attempt + 1 == attempts:
                     raise UserError(f"run {self.run_id!r}: cannot listen on "

@@ -26,6 +26,7 @@ import cosim
 from cosim.errors import UserError
 from cosim.scenario.imports import pythonpath
 from cosim.transport.launch import PythonComponentLaunch
+from cosim.transport.zenoh import runtime
 from cosim.transport.zenoh.auth import Credential
 
 TAIL_CHARS = 800
@@ -50,9 +51,10 @@ def _child_env(run_id: str, import_path: Sequence[str] = ()) -> dict[str, str]:
 
     OpenBLAS gets one thread unless the user says otherwise: a component works
     on small vectors, and numpy's import then starts no thread pool (about a
-    third faster on a busy 2-core machine, and no oversubscription).
+    third faster on a busy 2-core machine, and no oversubscription). Zenoh's
+    runtime likewise (`runtime`: one message in flight needs no pools).
     """
-    env = dict(os.environ)
+    env = runtime.child_environment(dict(os.environ))
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     roots = [*(import_path or [os.getcwd()]), str(Path(cosim.__file__).resolve().parent.parent)]
     env["PYTHONPATH"] = pythonpath(roots, env.get("PYTHONPATH"))
