@@ -39,10 +39,11 @@ class Gate:
 
 def client(url: str, gate: Gate, found: dict) -> None:
     """Subscribe to /tf, /signals/vehicle and /scene/road; collect what arrives."""
-    with connect(url, subprotocols=[SUBPROTOCOL], open_timeout=WAIT_S) as ws:
+    # close_timeout: the server does not answer the closing handshake, so closing waits that long
+    with connect(url, subprotocols=[SUBPROTOCOL], open_timeout=WAIT_S, close_timeout=1) as ws:
         channels: dict[int, dict] = {}
         deadline = time.monotonic() + WAIT_S
-        subscribed: dict[int, str] = {}
+        subscribed: dict[int, str] = {}  # subscription id -> topic
         while time.monotonic() < deadline and not gate.received.is_set():
             frame = ws.recv(timeout=WAIT_S)
             if isinstance(frame, str):
@@ -51,7 +52,7 @@ def client(url: str, gate: Gate, found: dict) -> None:
                 for ch in op.get("channels", []) if op["op"] == "advertise" else []:
                     channels[ch["id"]] = ch
                 wanted = [c for c in channels.values() if c["topic"] in ("/tf", "/signals/vehicle", "/scene/road")
-                          and c["id"] not in subscribed.values()]
+                          and c["topic"] not in subscribed.values()]  # once each: a repeat draws a status
                 if wanted:
                     subs = [{"id": 100 + c["id"], "channelId": c["id"]} for c in wanted]
                     subscribed.update({s["id"]: channels[s["channelId"]]["topic"] for s in subs})
