@@ -14,12 +14,14 @@ is about a quarter, and what our stack adds to it (codec, the component's
 Python, a process with more code and data to bring back into the caches) weighs
 the more.
 
-Every process runs Zenoh's runtime on one thread, as a run's processes do
-(cosim.transport.zenoh.runtime). The same four measurements are then made again
-in a child process with Zenoh's default pools (`ZENOH_RUNTIME='()'`, rows (p)),
-and the speed-up of one thread over them is printed.
+Each measurement runs in a child process, since a process chooses its Zenoh
+runtime once: with the runtime on one thread, as a run's processes have it
+(cosim.transport.zenoh.runtime), and with Zenoh's default pools
+(`ZENOH_RUNTIME='()'`, rows (p), (q), (p1), (q1)), alternating over `--rounds`;
+each row is the median over its rounds, and the speed-up of one thread over the
+pools is printed, medians and p99 (`--no-pools`: one thread only).
 
-    PYTHONPATH=. .venv/bin/python benchmarks/bench_zenoh.py [--ticks 5000] [--no-pools]
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_zenoh.py [--ticks 5000] [--rounds 2] [--no-pools]
 """
 
 from __future__ import annotations
@@ -165,76 +167,121 @@ def _pythonpath() -> str:
     return os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH", "")) if p)
 
 
-def _summary(label: str, times: np.ndarray) -> tuple[float, float]:
-    median, p99 = np.median(times) * 1e6, np.percentile(times, 99) * 1e6
-    print(f"{label:<34} median {median:8.1f} us   p99 {p99:8.1f} us   (n={times.size})")
-    return median, p99
+CASES = (("raw", "raw put/sub round trip, 100 B"), ("tick", "lockstep tick, 1 component"),
+         ("raw1", "the same on one CPU"), ("tick1", "the same on one CPU"))
+# each runtime's row labels, as printed: ours (a)..(b1) (run_all_rows reads them), the pools' (p)..(q1)
+LABELS = {"one": ("a", "b", "a1", "b1"), "pools": ("p", "q", "p1", "q1")}
+RUNTIMES = {"one": runtime.ONE_THREAD, "pools": runtime.DEFAULT_POOLS}
+CHILD_TIMEOUT_S = 600
 
 
-def measure_both(ticks: int, blocks: int, tag: tuple[str, str, str, str]) -> dict[str, float]:
-    """Both placements; prints the rows labelled `tag` (raw, tick, raw one CPU, tick one
-    CPU) and returns their medians in us by tag (the one-CPU ones only where available)."""
-    medians = {}
-    raw, tick, _ = measure_interleaved(ticks, blocks)
-    medians[tag[0]], _ = _summary(f"({tag[0]}) raw put/sub round trip, 100 B", raw)
-    medians[tag[1]], _ = _summary(f"({tag[1]}) lockstep tick, 1 component", tick)
-    raw, tick, pinned = measure_interleaved(ticks, blocks, one_cpu=True)
-    if pinned:
-        medians[tag[2]], _ = _summary(f"({tag[2]}) the same on one CPU", raw)
-        medians[tag[3]], _ = _summary(f"({tag[3]}) the same on one CPU", tick)
-    return medians
+def measure_cases(ticks: int, blocks: int) -> dict[str, tuple[float, float]]:
+    """Both placements in this process: (median, p99) in us by case (one-CPU ones if available)."""
+    found = {}
+    for one_cpu in (False, True):
+        raw, tick, pinned = measure_interleaved(ticks, blocks, one_cpu=one_cpu)
+        if one_cpu and not pinned:
+            break
+        for case, times in zip(("raw1", "tick1") if one_cpu else ("raw", "tick"), (raw, tick)):
+            found[case] = (float(np.median(times) * 1e6), float(np.percentile(times, 99) * 1e6))
+    return found
 
 
-def default_pools(ticks: int, blocks: int) -> dict[str, float]:
-    """The same measurements in a child process with Zenoh's default runtime pools."""
-    env = {**os.environ, "PYTHONPATH": _pythonpath(), runtime.ENV: runtime.DEFAULT_POOLS}
-    done = subprocess.run([sys.executable, __file__, "--ticks", str(ticks), "--blocks", str(blocks),
-                           "--pools-child"], env=env, capture_output=True, text=True)
-    print("".join(line for line in done.stdout.splitlines(keepends=True)
-                  if not line.startswith("median ")), end="")
-    if done.returncode != 0:
-        print(f"default pools: the child failed ({done.returncode}): {done.stderr.strip()[-300:]}")
+def measure_in_child(ticks: int, blocks: int, setting: str) -> dict[str, tuple[float, float]]:
+    """`measure_cases` in a child process whose Zenoh runtime is `setting` (a process chooses
+    its runtime once); {} if the child failed (said on stdout)."""
+    env = {**os.environ, "PYTHONPATH": _pythonpath(), runtime.ENV: setting}
+    try:
+        done = subprocess.run([sys.executable, __file__, "--ticks", str(ticks), "--blocks", str(blocks),
+                               "--child"], env=env, capture_output=True, text=True,
+                              timeout=CHILD_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        print(f"ZENOH_RUNTIME={setting!r}: the child took more than {CHILD_TIMEOUT_S} s")
         return {}
-    return {k: float(v) for k, v in (line.split("=", 1) for line in done.stdout.splitlines()
-                                     if line.startswith("median "))
-            for k in [k.removeprefix("median ")]}
+    if done.returncode != 0:
+        print(f"ZENOH_RUNTIME={setting!r}: the child failed ({done.returncode}): "
+              f"{done.stderr.strip()[-300:]}")
+        return {}
+    return parse_child(done.stdout)
+
+
+def parse_child(text: str) -> dict[str, tuple[float, float]]:
+    """The cases a child printed as `case median p99` lines."""
+    found = {}
+    for line in text.splitlines():
+        parts = line.split()
+        if len(parts) == 3 and parts[0] in dict(CASES):
+            found[parts[0]] = (float(parts[1]), float(parts[2]))
+    return found
+
+
+def combine(rounds: list[dict[str, tuple[float, float]]]) -> dict[str, tuple[float, float]]:
+    """Per case, the median over the rounds of its median and of its p99."""
+    cases = [case for case, _ in CASES if rounds and all(case in r for r in rounds)]
+    return {case: (float(np.median([r[case][0] for r in rounds])),
+                   float(np.median([r[case][1] for r in rounds]))) for case in cases}
+
+
+def print_cases(which: str, found: dict[str, tuple[float, float]], ticks: int, rounds: int) -> None:
+    for (case, what), label in zip(CASES, LABELS[which]):
+        if case in found:
+            median, p99 = found[case]
+            print(f"{f'({label}) {what}':<34} median {median:8.1f} us   p99 {p99:8.1f} us   "
+                  f"(n={ticks} x {rounds})")
 
 
 def main() -> None:
-    """Run both measurements and print them with their ratio."""
+    """Run the measurements under each runtime, alternating, and print them with their ratios."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ticks", type=int, default=5000, help="measured exchanges per case")
     parser.add_argument("--blocks", type=int, default=20, help="alternations raw/tick")
+    parser.add_argument("--rounds", type=int, default=2,
+                        help="rounds of child processes, alternating the two runtimes")
     parser.add_argument("--pools", action=argparse.BooleanOptionalAction, default=True,
-                        help="also measure Zenoh's default runtime pools (a child process)")
+                        help="also measure Zenoh's default runtime pools")
     parser.add_argument("--echo", metavar="ENDPOINT", help=argparse.SUPPRESS)
-    parser.add_argument("--pools-child", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.echo:
         echo(args.echo)
         return
-    if args.pools_child:
-        for key, value in measure_both(args.ticks, args.blocks, ("p", "q", "p1", "q1")).items():
-            print(f"median {key}={value}")
+    if args.child:
+        for case, (median, p99) in measure_cases(args.ticks, args.blocks).items():
+            print(case, median, p99)
         return
-    ours = measure_both(args.ticks, args.blocks, ("a", "b", "a1", "b1"))
-    print(f"ratio tick / raw (medians): {ours['b'] / ours['a']:.2f}  (target <= 1.25)")
-    if "a1" not in ours:
+    which = ("one", "pools") if args.pools else ("one",)
+    rounds: dict[str, list] = {w: [] for w in which}
+    for _ in range(max(1, args.rounds)):
+        for w in which:
+            found = measure_in_child(args.ticks, args.blocks, RUNTIMES[w])
+            if found:
+                rounds[w].append(found)
+    results = {w: combine(rounds[w]) for w in which}
+    ours = results["one"]
+    if "tick" not in ours:
+        raise SystemExit("bench_zenoh: no measurement with one runtime thread")
+    print(f"Zenoh's runtime on one thread in every process (as a run's processes), "
+          f"{len(rounds['one'])} child processes, medians over them:")
+    print_cases("one", ours, args.ticks, len(rounds["one"]))
+    print(f"ratio tick / raw (medians): {ours['tick'][0] / ours['raw'][0]:.2f}  (target <= 1.25)")
+    if "tick1" not in ours:
         print("one CPU: not available here (no CPU affinity, or a single CPU)")
     else:
-        print(f"ratio tick / raw on one CPU (medians): {ours['b1'] / ours['a1']:.2f}  "
+        print(f"ratio tick / raw on one CPU (medians): {ours['tick1'][0] / ours['raw1'][0]:.2f}  "
               f"(target <= 1.25)")
     if not args.pools:
         return
-    print("with Zenoh's default runtime pools (ZENOH_RUNTIME='()'), in a child process:")
-    pools = default_pools(args.ticks, args.blocks)
-    for ours_key, pools_key, what in (("a", "p", "raw round trip"), ("b", "q", "lockstep tick"),
-                                      ("a1", "p1", "raw round trip on one CPU"),
-                                      ("b1", "q1", "lockstep tick on one CPU")):
-        if ours_key in ours and pools_key in pools:
-            print(f"default pools / one runtime thread, {what}: "
-                  f"{pools[pools_key]:.1f} / {ours[ours_key]:.1f} us = "
-                  f"{pools[pools_key] / ours[ours_key]:.2f}x")
+    pools = results["pools"]
+    print("with Zenoh's default runtime pools (ZENOH_RUNTIME='()'), the child processes "
+          "alternating with the above:")
+    print_cases("pools", pools, args.ticks, len(rounds["pools"]))
+    for case, what in (("raw", "raw round trip"), ("tick", "lockstep tick"),
+                       ("raw1", "raw round trip on one CPU"), ("tick1", "lockstep tick on one CPU")):
+        if case in ours and case in pools:
+            (mine, mine_p99), (theirs, theirs_p99) = ours[case], pools[case]
+            print(f"default pools / one runtime thread, {what}: {theirs:.1f} / {mine:.1f} us = "
+                  f"{theirs / mine:.2f}x (p99 {theirs_p99:.0f} / {mine_p99:.0f} us = "
+                  f"{theirs_p99 / mine_p99:.2f}x)")
 
 
 if __name__ == "__main__":

@@ -38,27 +38,45 @@ def test_a_users_runtime_setting_reaches_the_child(monkeypatch):
     assert _child_env("r1")[runtime.ENV] == runtime.DEFAULT_POOLS
 
 
-def test_the_first_session_sees_one_thread_and_the_environment_is_restored(monkeypatch):
+@pytest.fixture
+def fresh_process(monkeypatch):
+    """This process as if no session had opened yet, with no ZENOH_RUNTIME of its own."""
+    monkeypatch.setattr(runtime, "_chosen", False)
     monkeypatch.delenv(runtime.ENV, raising=False)
+
+
+def test_the_first_session_sees_one_thread_and_the_environment_is_restored(fresh_process):
     with runtime.first_session():
         assert os.environ[runtime.ENV] == runtime.ONE_THREAD
     assert runtime.ENV not in os.environ
+
+
+def test_later_sessions_leave_the_environment_alone(fresh_process):
+    with runtime.first_session():
+        pass
+    with runtime.first_session():  # the runtime is chosen: nothing to set, nothing to race
+        assert runtime.ENV not in os.environ
+
+
+def test_a_users_setting_is_kept_for_the_first_session(fresh_process, monkeypatch):
     monkeypatch.setenv(runtime.ENV, "(app: (worker_threads: 2))")
     with runtime.first_session():
         assert os.environ[runtime.ENV] == "(app: (worker_threads: 2))"
     assert os.environ[runtime.ENV] == "(app: (worker_threads: 2))"
 
 
-def test_an_interrupted_first_session_restores_the_environment(monkeypatch):
-    monkeypatch.delenv(runtime.ENV, raising=False)
+def test_an_interrupted_first_session_restores_the_environment(fresh_process):
     with pytest.raises(KeyboardInterrupt), runtime.first_session():
         raise KeyboardInterrupt
     assert runtime.ENV not in os.environ
+    with runtime.first_session():  # and counts as the first
+        assert runtime.ENV not in os.environ
 
 
 @pytest.mark.integration
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs /proc")
-def test_component_processes_run_zenoh_on_one_thread():
+def test_component_processes_run_zenoh_on_one_thread(monkeypatch):
+    monkeypatch.delenv(runtime.ENV, raising=False)  # a user's setting would be theirs
     with ZenohComponents([launch("echo", "Echo")], run_id=f"t-rt-{os.getpid()}") as hosted:
         echo = hosted.components["echo"]
         echo.start(0.0, {"u": 1.0})

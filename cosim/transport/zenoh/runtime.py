@@ -7,17 +7,19 @@ hand-over is a wake-up. In a lockstep run one message is in flight at a time, so
 nothing runs in parallel there: with every pool handed over to a single app
 thread (Zenoh's `ZENOH_RUNTIME` setting), a message wakes fewer threads.
 
-Measured on the 2-vCPU machine of DESIGN.md (`benchmarks/bench_zenoh.py`, which
-also runs the default pools in the same run): a raw round trip between two Python
-processes 178 -> 100 us where the OS puts them, 43-58 -> 31 us on one CPU; a
-trivial component's lockstep tick 190-195 -> 112 us and 79-81 -> 43-50 us; the
-Satory loop under two or four busy processes no slower (benchmarks/issue14_plan.md,
-"Session 8").
+Measured on the 2-vCPU machine of DESIGN.md (benchmarks/issue14_plan.md, "Session 8";
+`benchmarks/bench_zenoh.py` measures both runtimes in alternating child processes):
+a trivial component's lockstep tick about 1.5x faster in both placements (OS-placed
+p99 worse); `cosim run satory_nominal` 7-12 % faster on a quiet machine, up to 20 %
+slower with a busy process on each CPU and up to 40 % with two; with
+`--lockstep-cpu off` faster, quiet and under load.
 
-Zenoh reads the setting once per process, when its first session opens. The
-master's session is opened inside `first_session` and every component process
-inherits `child_environment`; a `ZENOH_RUNTIME` the user set is left alone
-(`ZENOH_RUNTIME='()'` gives Zenoh's default pools).
+Zenoh reads the setting once per process, when its first session opens: the
+choice holds for every later session of the process that hosts the master (a
+user's own included). That process opens its first session inside
+`first_session`; every local component process inherits `child_environment`
+(on a worker host, the `cosim worker` environment decides). A `ZENOH_RUNTIME` the
+user set is left alone (`ZENOH_RUNTIME='()'` gives Zenoh's default pools).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ ENV = "ZENOH_RUNTIME"
 ONE_THREAD = ("(app: (worker_threads: 1), acc: (handover: app), tx: (handover: app), "
               "rx: (handover: app), net: (handover: app))")
 DEFAULT_POOLS = "()"  # Zenoh's own defaults, for a comparison
+_chosen = False  # first_session has run in this process: later sessions share its runtime
 
 
 def child_environment(env: MutableMapping[str, str]) -> MutableMapping[str, str]:
@@ -42,13 +45,17 @@ def child_environment(env: MutableMapping[str, str]) -> MutableMapping[str, str]
 def first_session() -> Iterator[None]:
     """Around the `zenoh.open` of this process's first session: one runtime thread.
 
-    A `ZENOH_RUNTIME` already in the environment is used as it is. Once Zenoh's runtime
-    has started in this process (an earlier session), the setting no longer changes it.
-    The environment is restored afterwards, so later child processes see the user's.
+    A `ZENOH_RUNTIME` already in the environment is used as it is. The environment is
+    set only on the first call of the process and restored right after, so later child
+    processes see the user's; later calls change nothing (Zenoh's runtime is chosen by
+    then, and other threads may be reading the environment).
     """
-    if ENV in os.environ:
+    global _chosen
+    if _chosen or ENV in os.environ:
+        _chosen = True
         yield
         return
+    _chosen = True  # whatever happens below: the environment is touched once per process
     os.environ[ENV] = ONE_THREAD
     try:
         yield
