@@ -256,25 +256,29 @@ def main() -> None:
             found = measure_in_child(args.ticks, args.blocks, RUNTIMES[w])
             if found:
                 rounds[w].append(found)
-    results = {w: combine(rounds[w]) for w in which}
+    report({w: combine(rounds[w]) for w in which}, {w: len(r) for w, r in rounds.items()}, args.ticks)
+
+
+def report(results: dict[str, dict], rounds: dict[str, int], ticks: int) -> None:
+    """Print each runtime's rows (as run_all_rows reads them), the ratios and the speed-ups."""
     ours = results["one"]
     if "tick" not in ours:
         raise SystemExit("bench_zenoh: no measurement with one runtime thread")
     print(f"Zenoh's runtime on one thread in every process (as a run's processes), "
-          f"{len(rounds['one'])} child processes, medians over them:")
-    print_cases("one", ours, args.ticks, len(rounds["one"]))
+          f"{rounds['one']} child processes, medians over them:")
+    print_cases("one", ours, ticks, rounds["one"])
     print(f"ratio tick / raw (medians): {ours['tick'][0] / ours['raw'][0]:.2f}  (target <= 1.25)")
     if "tick1" not in ours:
         print("one CPU: not available here (no CPU affinity, or a single CPU)")
     else:
         print(f"ratio tick / raw on one CPU (medians): {ours['tick1'][0] / ours['raw1'][0]:.2f}  "
               f"(target <= 1.25)")
-    if not args.pools:
+    if "pools" not in results:
         return
     pools = results["pools"]
     print("with Zenoh's default runtime pools (ZENOH_RUNTIME='()'), the child processes "
           "alternating with the above:")
-    print_cases("pools", pools, args.ticks, len(rounds["pools"]))
+    print_cases("pools", pools, ticks, rounds["pools"])
     for case, what in (("raw", "raw round trip"), ("tick", "lockstep tick"),
                        ("raw1", "raw round trip on one CPU"), ("tick1", "lockstep tick on one CPU")):
         if case in ours and case in pools:
