@@ -20,8 +20,9 @@ alternating repetitions of five cases measured in the same run:
 - `cosim run CLI` and `cosim run CLI, default pools`: the `cosim` command
   itself in a fresh process, as it comes (Zenoh's runtime on one thread in
   every process of the run, `cosim.transport.zenoh.runtime`) and with Zenoh's
-  default runtime pools (`ZENOH_RUNTIME='()'`), ticks 1..N from its manifest;
-  a process chooses its runtime once, so these two are child processes;
+  default runtime pools (`ZENOH_RUNTIME='()'`), ticks 1..N from its manifest,
+  at least 60 s simulated (compared with each other only); a process chooses
+  its runtime once, so these two are child processes;
 - `raw round trip`: a 100-byte put/subscribe round trip between this process
   and an echo process (benchmarks/bench_zenoh.py's pair), median of a block,
   both processes on the chain's CPU; `raw round trip, OS placement`: another
@@ -83,6 +84,7 @@ CPU_RAW = "raw round trip, CPU of both processes"
 PLANNER_IN_MASTER = "zenoh loop, planner inproc"
 OS_LOOP, OS_RAW = "zenoh loop, OS placement", "raw round trip, OS placement"
 CLI_RUN, POOLS_RUN = "cosim run CLI", "cosim run CLI, default pools"
+CLI_SECONDS = 60.0  # at least: a 10 s run's loop lasts 0.2 s, too short a sample for this pair
 CASES = ("inproc loop", "zenoh loop", OS_LOOP, PLANNER_IN_MASTER, "cosim run zenoh", CLI_RUN, POOLS_RUN,
          "raw round trip", OS_RAW, CPU_INPROC, CPU_ZENOH, CPU_RAW)
 # each loop case against the round trip placed as it is
@@ -232,7 +234,7 @@ def _alternate(prepared, repeats: int, samples: dict[str, list[float]], pinned_p
     with on_chain_cpu(processes=pinned):
         pinned_pair.measure(200)  # warm-up
     os_pair.measure(200)
-    for _ in range(repeats):
+    for repeat in range(repeats):
         tick, cpu, inproc_store = inproc_loop(prepared)
         samples["inproc loop"].append(tick)
         samples[CPU_INPROC].append(cpu)
@@ -253,8 +255,9 @@ def _alternate(prepared, repeats: int, samples: dict[str, list[float]], pinned_p
                 raise SystemExit(f"CHECK FAILED: {what} and inproc signal stores differ ({differ} values)")
         if full_run:
             samples["cosim run zenoh"].append(cosim_run_zenoh(prepared))
-            samples[CLI_RUN].append(cosim_run_cli(prepared.scenario.duration, pools=False))
-            samples[POOLS_RUN].append(cosim_run_cli(prepared.scenario.duration, pools=True))
+            cli_seconds = max(prepared.scenario.duration, CLI_SECONDS)
+            for pools in (False, True) if repeat % 2 == 0 else (True, False):  # either goes first
+                samples[POOLS_RUN if pools else CLI_RUN].append(cosim_run_cli(cli_seconds, pools))
         pids = [os.getpid(), pinned_pair.child.pid]
         cpu = _cpu_seconds(pids)
         with on_chain_cpu(processes=pinned):
