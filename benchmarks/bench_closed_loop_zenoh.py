@@ -316,8 +316,8 @@ def netns_measure(seconds: float, repeats: int, component_ns: str, master_host: 
     wrap = ("ip", "netns", "exec", component_ns)
 
     class NamespacedChild(ChildProcess):
-        def _start(self, name, run_id, argv, import_path=()):
-            super()._start(name, run_id, [*wrap, *argv], import_path)
+        def _start(self, name, run_id, argv, import_path=(), one_runtime_thread=True):
+            super()._start(name, run_id, [*wrap, *argv], import_path, one_runtime_thread)
 
     class NamespacedComponents(ZenohComponents):
         def _spawn(self, spec):

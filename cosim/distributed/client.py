@@ -223,6 +223,9 @@ def _jsonable(spec: PythonComponentLaunch) -> dict[str, Any]:
 class DistributedComponents(ZenohComponents):
     """ZenohComponents with deployment settings and components placed on workers.
 
+    Its processes keep Zenoh's default runtime pools: with one runtime thread, a link cut
+    mid-run left the master waiting past every deadline (tests/distributed/test_netns.py).
+
     Args:
         specs: every Python component of the run.
         run_id: scopes every key.
@@ -231,6 +234,8 @@ class DistributedComponents(ZenohComponents):
         settings: endpoints (the first `listen` one is the master's), TLS, ACL.
         startup_timeout_s: longest wait for every component's handshake.
     """
+
+    one_runtime_thread = False
 
     def __init__(self, specs: Sequence[PythonComponentLaunch], run_id: str,
                  deadline_s: float = 5.0, *, placement: Mapping[str, str] | None = None,
@@ -333,7 +338,8 @@ class DistributedComponents(ZenohComponents):
         conf = zenoh_settings(self.settings, "peer", [], [self.endpoint])
         if self._shared is not None:  # the master checks credentials: present the run's
             conf["transport"]["auth"] = {"usrpwd": self.credential.usrpwd()}
-        return ChildProcess(spec, self.run_id, self.endpoint, session_config=conf)
+        return ChildProcess(spec, self.run_id, self.endpoint, session_config=conf,
+                            one_runtime_thread=self.one_runtime_thread)
 
     def exit_notice(self, component: str) -> dict[str, Any] | None:
         """The exit notice a worker sent for `component`, if any."""

@@ -229,7 +229,7 @@ class Worker:
                                 f"{component!r}: it already hosts {len(self._children)} "
                                 f"components (--max-components {self.max_components})")
             child = ChildProcess(launch, run_id, connect[0], session_config=session_conf,
-                                 handshake_timeout_s=self.orphan_timeout_s)
+                                 handshake_timeout_s=self.orphan_timeout_s, one_runtime_thread=False)
             self._children[(run_id, component)] = _Hosted(child, run_id, token, time.monotonic())
             self._watch_master(run_id)
         return child.pid

@@ -33,6 +33,11 @@ def test_a_child_gets_one_runtime_thread(monkeypatch):
     assert _child_env("r1")[runtime.ENV] == runtime.ONE_THREAD
 
 
+def test_a_child_asked_for_the_pools_gets_no_setting(monkeypatch):
+    monkeypatch.delenv(runtime.ENV, raising=False)
+    assert runtime.ENV not in _child_env("r1", one_runtime_thread=False)
+
+
 def test_a_users_runtime_setting_reaches_the_child(monkeypatch):
     monkeypatch.setenv(runtime.ENV, runtime.DEFAULT_POOLS)
     assert _child_env("r1")[runtime.ENV] == runtime.DEFAULT_POOLS
@@ -55,6 +60,14 @@ def test_later_sessions_leave_the_environment_alone(fresh_process):
     with runtime.first_session():
         pass
     with runtime.first_session():  # the runtime is chosen: nothing to set, nothing to race
+        assert runtime.ENV not in os.environ
+
+
+def test_a_first_session_asked_for_the_pools_sets_nothing_and_chooses(fresh_process):
+    with runtime.first_session(one_thread=False):
+        assert runtime.ENV not in os.environ
+    assert runtime._chosen
+    with runtime.first_session():  # the process's runtime is chosen: the pools
         assert runtime.ENV not in os.environ
 
 
@@ -92,6 +105,7 @@ sys.path.insert(0, sys.argv[1])
 from cosim.transport.zenoh import ZenohComponents
 from tests.helpers.components import launch
 from tests.transport.test_zenoh_runtime import thread_kinds
+ZenohComponents.one_runtime_thread = sys.argv[2] == "one"
 with ZenohComponents([launch("echo", "Echo")], run_id="t-rt-master-%d" % os.getpid()) as hosted:
     echo = hosted.components["echo"]
     echo.start(0.0, {"u": 1.0})
@@ -104,16 +118,24 @@ with ZenohComponents([launch("echo", "Echo")], run_id="t-rt-master-%d" % os.getp
 
 @pytest.mark.integration
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs /proc")
-@pytest.mark.parametrize("setting", [None, runtime.DEFAULT_POOLS])
-def test_a_fresh_master_process_opens_its_session_on_one_thread_unless_told(setting):
+@pytest.mark.parametrize("setting, asked, pools_expected", [
+    (None, "one", False), (runtime.DEFAULT_POOLS, "one", True), (None, "pools", True)])
+def test_a_fresh_master_process_opens_its_session_on_one_thread_unless_told(
+        setting, asked, pools_expected):
+    """A user's setting wins; a host asking for the pools (runs with workers) gets them."""
     env = {k: v for k, v in os.environ.items() if k != runtime.ENV}
     if setting is not None:
         env[runtime.ENV] = setting
-    done = subprocess.run([sys.executable, "-c", MASTER, str(ROOT)], env=env, cwd=ROOT,
+    done = subprocess.run([sys.executable, "-c", MASTER, str(ROOT), asked], env=env, cwd=ROOT,
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     seen = json.loads(done.stdout.strip().splitlines()[-1])
     assert seen["env"] == setting  # the master's environment is as it was
     for process in ("master", "child"):
         pools = set(seen[process]) & set(POOLS)
-        assert (pools == set()) if setting is None else (pools != set()), (process, seen)
+        assert bool(pools) == pools_expected, (process, seen)
+
+
+def test_runs_with_workers_keep_the_default_pools():
+    from cosim.distributed.client import DistributedComponents
+    assert ZenohComponents.one_runtime_thread and not DistributedComponents.one_runtime_thread

@@ -96,6 +96,8 @@ class RemoteComponent:
 class ZenohComponents:
     """Context manager hosting Python components in their own processes over Zenoh.
 
+    Its processes run Zenoh's runtime on one thread (`runtime`, `one_runtime_thread`).
+
     Args:
         specs: the components to launch, one process each.
         run_id: scopes every key expression (letters, digits, '_', '.', '-').
@@ -109,6 +111,8 @@ class ZenohComponents:
         credential: what every session of the run authenticates with (None: a new
             random one); the master accepts only peers that present it.
     """
+
+    one_runtime_thread = True  # False: Zenoh's default pools (runs across hosts)
 
     def __init__(self, specs: Sequence[PythonComponentLaunch], run_id: str,
                  deadline_s: float = 5.0, endpoint: str | None = None, *,
@@ -235,7 +239,8 @@ class ZenohComponents:
 
     def _spawn(self, spec: PythonComponentLaunch) -> ChildProcess:
         """Start the process of one component (a subclass may start it elsewhere)."""
-        return ChildProcess(spec, self.run_id, self.endpoint, credential=self.credential)
+        return ChildProcess(spec, self.run_id, self.endpoint, credential=self.credential,
+                            one_runtime_thread=self.one_runtime_thread)
 
     @property
     def pids(self) -> dict[str, int]:
@@ -253,7 +258,7 @@ class ZenohComponents:
         for attempt in range(attempts):
             endpoint = self.endpoint or config.free_tcp_endpoint()
             try:
-                with runtime.first_session():  # one runtime thread, if this is the first
+                with runtime.first_session(self.one_runtime_thread):
                     self.session = zenoh.open(self._session_config(endpoint))
             except zenoh.ZError as exc:
                 if attempt + 1 == attempts:

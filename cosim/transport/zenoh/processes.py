@@ -44,7 +44,8 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"{type(value).__name__} is not JSON-serializable")
 
 
-def _child_env(run_id: str, import_path: Sequence[str] = ()) -> dict[str, str]:
+def _child_env(run_id: str, import_path: Sequence[str] = (),
+               one_runtime_thread: bool = True) -> dict[str, str]:
     """Environment letting the child import cosim and the scenario's modules: `import_path`
     (the scenario's folder and the cwd, `cosim.scenario.imports`), else the cwd;
     COSIM_RUN_ID names its run for its owner (/proc/PID/environ is owner-only).
@@ -54,7 +55,7 @@ def _child_env(run_id: str, import_path: Sequence[str] = ()) -> dict[str, str]:
     third faster on a busy 2-core machine, and no oversubscription). Zenoh's
     runtime likewise (`runtime`: one message in flight needs no pools).
     """
-    env = runtime.child_environment(dict(os.environ))
+    env = runtime.child_environment(dict(os.environ)) if one_runtime_thread else dict(os.environ)
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     roots = [*(import_path or [os.getcwd()]), str(Path(cosim.__file__).resolve().parent.parent)]
     env["PYTHONPATH"] = pythonpath(roots, env.get("PYTHONPATH"))
@@ -96,12 +97,14 @@ class ChildProcess:
     def __init__(self, spec: PythonComponentLaunch, run_id: str, endpoint: str, *,
                  credential: Credential | None = None,
                  session_config: dict[str, Any] | None = None,
-                 handshake_timeout_s: float | None = None) -> None:
+                 handshake_timeout_s: float | None = None,
+                 one_runtime_thread: bool = True) -> None:
         self._session = {"run_id": run_id, "connect": endpoint,
                          "auth": credential.to_json() if credential else None,
                          "zenoh_config": session_config,
                          "handshake_timeout_s": handshake_timeout_s}
-        self._start(spec.name, run_id, _runner_argv(spec.name), spec.import_path)
+        self._start(spec.name, run_id, _runner_argv(spec.name), spec.import_path,
+                    one_runtime_thread)
         self.send_spec(spec)
 
     @classmethod
@@ -152,10 +155,11 @@ class ChildProcess:
             pass  # the process died (or was reaped): the handshake reports how
 
     def _start(self, name: str, run_id: str, argv: list[str],
-               import_path: Sequence[str] = ()) -> None:
+               import_path: Sequence[str] = (), one_runtime_thread: bool = True) -> None:
         self.name = name
         self._log = tempfile.TemporaryFile(prefix=f"cosim-{name}-")
-        self.popen = subprocess.Popen(argv, env=_child_env(run_id, import_path), stdin=subprocess.PIPE,
+        env = _child_env(run_id, import_path, one_runtime_thread)
+        self.popen = subprocess.Popen(argv, env=env, stdin=subprocess.PIPE,
                                       stdout=self._log, stderr=subprocess.STDOUT)
         self.pid = self.popen.pid
 

@@ -17,9 +17,15 @@ slower with a busy process on each CPU and up to 40 % with two; with
 Zenoh reads the setting once per process, when its first session opens: the
 choice holds for every later session of the process that hosts the master (a
 user's own included). That process opens its first session inside
-`first_session`; every local component process inherits `child_environment`
-(on a worker host, the `cosim worker` environment decides). A `ZENOH_RUNTIME` the
-user set is left alone (`ZENOH_RUNTIME='()'` gives Zenoh's default pools).
+`first_session`; every local component process inherits `child_environment`.
+A `ZENOH_RUNTIME` the user set is left alone (`ZENOH_RUNTIME='()'` gives Zenoh's
+default pools).
+
+Runs with workers (`cosim.distributed`) keep the default pools in the master, its
+local components and every worker's children: with one runtime thread, a link
+cut mid-run left the master waiting past every deadline instead of naming the
+lost worker (tests/distributed/test_netns.py, the link-cut test). A network
+that can fail needs the rx and tx pools to notice it while the app thread waits.
 """
 
 from __future__ import annotations
@@ -42,8 +48,9 @@ def child_environment(env: MutableMapping[str, str]) -> MutableMapping[str, str]
 
 
 @contextlib.contextmanager
-def first_session() -> Iterator[None]:
-    """Around the `zenoh.open` of this process's first session: one runtime thread.
+def first_session(one_thread: bool = True) -> Iterator[None]:
+    """Around the `zenoh.open` of this process's first session: one runtime thread,
+    or Zenoh's default pools when `one_thread` is False.
 
     A `ZENOH_RUNTIME` already in the environment is used as it is. The environment is
     set only on the first call of the process and restored right after, so later child
@@ -51,7 +58,7 @@ def first_session() -> Iterator[None]:
     then, and other threads may be reading the environment).
     """
     global _chosen
-    if _chosen or ENV in os.environ:
+    if _chosen or not one_thread or ENV in os.environ:
         _chosen = True
         yield
         return
