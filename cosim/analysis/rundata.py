@@ -13,7 +13,6 @@ out what a run did not record. A file that exists but cannot be read is an
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import json
 from collections.abc import Mapping, Sequence
@@ -437,19 +436,26 @@ def read_table(csv_path: Path) -> tuple[list[str], ColumnFile | np.ndarray]:
     return read_csv_columns(csv_path)
 
 
-def with_every_tick(run: RunData, full_signals: tuple[list[str], np.ndarray] | None) -> RunData:
-    """`run` with its scalar signals replaced by every tick's (`Recorder.full_signals`),
-    for the metrics of a decimated run; `run` itself when there is nothing to replace.
+def recorded_run(run_dir: str | Path, full_signals: tuple[list[str], np.ndarray] | None) -> RunData:
+    """The run folder just recorded, its scalar signals taken from the recorder
+    (`Recorder.full_signals`: every tick, the float64 values signals.csv holds) instead
+    of parsed from signals.csv; `load_run(run_dir)` when the recorder gave none.
 
     Args:
-        run: the run folder as loaded.
+        run_dir: the run folder (its manifest and arrays are read from there).
         full_signals: (columns, rows) of every tick, or None.
+
+    Raises:
+        AnalysisError: the folder or its signals.csv is missing or unreadable.
     """
     if full_signals is None:
-        return run
+        return load_run(run_dir)
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise AnalysisError(f"{run_dir}: no such run folder")
     header, data = full_signals
     columns = {name: data[:, i] for i, name in enumerate(header) if i > 0}
-    return dataclasses.replace(run, time=data[:, 0], columns=columns, every=1)
+    return RunData(run_dir, data[:, 0], columns, read_json_object(run_dir / "manifest.json"))
 
 
 def loaded_run(run_dir: str | Path, run: RunData | None) -> RunData:

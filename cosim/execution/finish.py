@@ -1,10 +1,11 @@
 """After a run: its metrics and figures, computed one way for `cosim run` and `cosim.run`.
 
-`analyse_run_folder` parses the run folder once, merges the platform's metrics
-(`cosim.analysis.metrics`) into metrics.json beside what the components
-reported, refreshes the RunResult's metrics from that file, and draws the
-figures. A decimated run (`record: {every: N}`) is analysed from every tick,
-which the recorder still holds (`RunResult.full_signals`), not from its files.
+`analyse_run_folder` merges the platform's metrics (`cosim.analysis.metrics`)
+into metrics.json beside what the components reported, refreshes the
+RunResult's metrics from that file, and draws the figures. It reads every tick
+from the recorder (`RunResult.full_signals`, its spool mapped: the values of
+signals.csv, without parsing it back), so a decimated run (`record: {every: N}`)
+is analysed from every tick too, not from its files.
 Analysis is best effort after a run that itself succeeded: what
 cannot be computed becomes a note, not an error.
 """
@@ -26,11 +27,10 @@ def analyse_run_folder(result: Any, figures: bool) -> list[str]:
         figures: draw the PNG figures too.
     """
     from cosim.analysis.metrics import write_metrics
-    from cosim.analysis.rundata import load_run, with_every_tick
+    from cosim.analysis.rundata import recorded_run
 
-    try:
-        run = load_run(result.out_dir)  # signals.csv parsed once, for metrics and figures
-        run = with_every_tick(run, getattr(result, "full_signals", None))  # record.every > 1
+    try:  # the recorder's rows, not signals.csv parsed back, for metrics and figures
+        run = recorded_run(result.out_dir, getattr(result, "full_signals", None))
     except Exception as exc:  # analysis is best effort after a run
         return [f"metrics not computed: {exc}"] + ([f"figures not drawn: {exc}"] if figures else [])
     notes: list[str] = []

@@ -58,7 +58,7 @@ class RunResult:
     startup: dict[str, Any] = field(default_factory=dict)  # StartupClock marks and origin
     live: dict[str, Any] | None = None  # {"run_id", "endpoint"} of the live view (zenoh)
     stopped_by: dict[str, Any] | None = None  # {"component", "tick", "time", "reason"}
-    # with record.every > 1: (columns, every tick's row) for the metrics; else None
+    # (columns, every tick's row) of the recorded scalars, for the metrics; None without a record
     full_signals: tuple[list[str], Any] | None = None
     # wall time of ticks 1..N alone (wall_time_s also counts tick 0, the initialization
     # phase); None when tick 0 was not completed

@@ -166,7 +166,7 @@ def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: 
     """
     from cosim.errors import UserError
     from cosim.analysis.metrics import write_metrics
-    from cosim.analysis.rundata import load_run, read_json_object, with_every_tick
+    from cosim.analysis.rundata import read_json_object, recorded_run
     from cosim.execution.run import run_scenario
     from cosim.scenario.loader import load_scenario
 
@@ -179,7 +179,7 @@ def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: 
         raise UserError(result.error or f"run ended with status {result.status!r}")
     # one parse and one analysis of the run folder: metrics.json then holds the
     # components' metrics and the platform's, which is what the sample reports
-    write_metrics(run_dir, run=with_every_tick(load_run(run_dir), result.full_signals))
+    write_metrics(run_dir, run=recorded_run(run_dir, result.full_signals))
     return {k: v for k, v in read_json_object(run_dir / "metrics.json").items()
             if isinstance(v, (int, float)) and not isinstance(v, bool)}
 

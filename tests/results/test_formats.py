@@ -105,7 +105,12 @@ def test_decimated_run_keeps_every_tick_for_the_metrics(tmp_path):
     assert columns == ["time", "noisy.u", "noisy.v", "echo.e", "awkward.a"]
     assert every_tick.shape == (TICKS + 1, 5) and every_tick.tobytes() == full.tobytes()
     assert not list(tmp_path.glob("*.f64*"))  # mapped, yet the spool is gone from the folder
-    assert _record(tmp_path / "plain")[1].full_signals is None
+
+
+def test_a_plain_run_gives_the_metrics_the_rows_of_its_csv(tmp_path):
+    columns, rows = _record(tmp_path)[1].full_signals
+    names, csv = read_signals(tmp_path / "signals.csv")
+    assert columns == names and rows.tobytes() == csv.tobytes()
 
 
 @pytest.mark.parametrize("every", [1, 3])
