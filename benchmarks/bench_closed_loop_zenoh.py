@@ -73,7 +73,7 @@ sys.path.insert(0, str(ROOT))
 from benchmarks.bench_startup import run_once  # noqa: E402
 from benchmarks.bench_zenoh import RawPair  # noqa: E402
 from cosim.engine import one_cpu  # noqa: E402
-from benchmarks.common import (emit_results, load_average, min_and_median, table_row,  # noqa: E402
+from benchmarks.common import (compiled_as_in_a_long_run, emit_results, load_average, min_and_median, table_row,  # noqa: E402
                                outputs_read)
 
 SCENARIO = ROOT / "scenarios" / "satory_nominal.yaml"
@@ -360,6 +360,7 @@ def main() -> None:
     parser.add_argument("--netns-child", metavar="NS", help=argparse.SUPPRESS)
     parser.add_argument("--master-host", default="127.0.0.1", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    compiled_as_in_a_long_run()  # a quick run's controller would otherwise run interpreted
     if not (args.seconds >= 1 and args.repeats >= 1):
         parser.error(f"need --seconds >= 1 and --repeats >= 1, got {args.seconds} and {args.repeats}")
     if args.netns_child:

@@ -29,7 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.common import emit_results, load_average, table_row  # noqa: E402
+from benchmarks.common import compiled_as_in_a_long_run, emit_results, load_average, table_row  # noqa: E402
 
 SCENARIO = ROOT / "scenarios" / "satory_nominal.yaml"
 TARGET = 0.10
@@ -105,6 +105,7 @@ def main() -> None:
     parser.add_argument("--no-figures", action="store_true", help="skip the figures after the run")
     parser.add_argument("--child", type=float, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    compiled_as_in_a_long_run()  # a quick run's controller would otherwise run interpreted
     if args.child is not None:
         child(args.child, args.transport, not args.no_figures)
         return

@@ -51,6 +51,23 @@ def min_and_median(samples: list[float]) -> tuple[float, float]:
 RESULT_PREFIX = "RESULT "
 
 
+def compiled_as_in_a_long_run() -> str:
+    """COSIM_JIT=on when it is unset or auto and numba is installed; the setting in effect.
+
+    The loops these benchmarks time stand for long runs, whose controllers run compiled;
+    with auto, a component process built for a run of fewer than
+    `controllers.jit.SHORT_RUN_STEPS` steps (every quick setting here) would run
+    interpreted, and a master timed against another implementation or against itself
+    at two durations would then not run the same code. Child processes inherit it.
+    """
+    import importlib.util
+
+    if os.environ.get("COSIM_JIT", "auto").strip().lower() in ("", "auto") \
+            and importlib.util.find_spec("numba") is not None:
+        os.environ["COSIM_JIT"] = "on"
+    return os.environ.get("COSIM_JIT", "auto")
+
+
 def load_average() -> str:
     """The 1, 5 and 15 minute load averages as "a / b / c", to print next to a figure."""
     return " / ".join(f"{x:.2f}" for x in os.getloadavg())

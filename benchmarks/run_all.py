@@ -36,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 
 from benchmarks import run_all_rows  # noqa: E402
 from benchmarks.common import RESULT_PREFIX, load_average, speed_anchor  # noqa: E402
+from controllers.jit import SHORT_RUN_STEPS  # noqa: E402
 
 BEGIN = "<!-- perf-table:begin -->"
 END = "<!-- perf-table:end -->"
@@ -175,7 +176,9 @@ def projection_line() -> str:
     compiled = mode.strip().lower() in ("on", "1", "yes", "true") or (found and mode.strip().lower() in ("auto", ""))
     how = "compiled (numba installed)" if compiled else ("interpreted (numba not installed)" if not found
                                                          else "interpreted")
-    return f"controllers' projection and step {how}, COSIM_JIT={mode} (bench_closed_loop measures both)"
+    return (f"controllers' projection and step {how}, COSIM_JIT={mode} (bench_closed_loop measures both; "
+            f"the Zenoh, memory and mosaik loops run with on, as a run of "
+            f"{SHORT_RUN_STEPS} steps or more does under auto)")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -6,8 +6,9 @@ their own Python source (the `jit` extra): the window projection
 (controllers.backstepping.step_jit). The same source runs interpreted when
 numba is absent or COSIM_JIT says off, and both paths give the same bits.
 
-COSIM_JIT = auto (default): compiled when numba is installed; off: never;
-on: compiled, or an error. `load_compiled` is the gate every compiled part
+COSIM_JIT = auto (default): compiled when numba is installed, except for a
+component built for a short run (`for_this_component`); off: never; on:
+compiled, or an error. `load_compiled` is the gate every compiled part
 goes through at its first use in a process: it imports it (which imports
 numba), checks it bit for bit against the interpreted path on built-in
 cases, compiles it afresh once if they disagree (numba's disk cache does not
@@ -23,7 +24,14 @@ import warnings
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from cosim.component import expected_steps
+
 JIT_VARIABLE = "COSIM_JIT"
+# COSIM_JIT=auto leaves numba out of a component built for fewer steps than this, unless its
+# compiled parts are loaded in the process already: numba's import and the first load of the
+# cached code delay tick 0 by 0.3-0.45 s, and the compiled paths save 24-27 us per
+# backstepping step (benchmarks/issue14_plan.md, "Session 9"): a shorter run ends sooner without.
+SHORT_RUN_STEPS = 15_000
 JIT_MODES = {"auto": "auto", "": "auto", "on": "on", "1": "on", "yes": "on", "true": "on",
              "off": "off", "0": "off", "no": "off", "false": "off"}
 
@@ -72,6 +80,18 @@ def load_compiled(what: str, load: Callable[[], Any], disagreement: Callable[[An
         warnings.warn(f"{what} is not used: {found}", RuntimeWarning, stacklevel=3)
         return None
     return kernel
+
+
+def for_this_component(gate: Callable[[], Any]) -> Any | None:
+    """`gate()` (a compiled part's loader, cached by functools, which calls `load_compiled`),
+    or None for the interpreted path when COSIM_JIT is auto, the part is not loaded in this
+    process yet and the component being built will step fewer than SHORT_RUN_STEPS times
+    (`cosim.component.expected_steps`; unknown: compiled)."""
+    if gate.cache_info().currsize == 0 and jit_mode()[0] == "auto":  # type: ignore[attr-defined]
+        steps = expected_steps()
+        if steps is not None and steps < SHORT_RUN_STEPS:
+            return None
+    return gate()
 
 
 def njit_cached(function: Callable) -> Any:

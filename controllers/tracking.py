@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim.component import ComponentError, Port, Value, is_frozen
+from controllers import jit
 from controllers.trajectory import FIELDS, TrajectoryWindow, window_ports
 from controllers.road.projection import (PreparedWindow, WindowError, cg_and_preview, compiled_kernel,
                                            is_empty, validate_window)
@@ -72,7 +73,8 @@ class InputReader:
     """
 
     def __init__(self) -> None:
-        compiled_kernel()     # the compiled projection's import and load now, before the first tick, not in it
+        # the compiled projection's import and load now, before the first tick, not in it
+        self._compiled = jit.for_this_component(compiled_kernel) is not None
         self._arrays: tuple = ()
         self._frozen = False
         self._content = b""
@@ -128,7 +130,7 @@ class InputReader:
         if (matrix is not None and matrix.ndim == 2 and matrix.shape[1] >= 2
                 and _all(np.isfinite(matrix), axis=None)
                 and _all(matrix[4, 1:] > matrix[4, :-1])):     # row 4: s (controllers.trajectory.FIELDS)
-            self._prepared = PreparedWindow(matrix)
+            self._prepared = PreparedWindow(matrix, self._compiled)
             return matrix.tobytes()
         window = TrajectoryWindow.from_signals(inputs, "ref")
         self._prepared = None
@@ -138,7 +140,7 @@ class InputReader:
             except WindowError as error:
                 self._arrays, self._frozen = (), False
                 raise ComponentError(f"bad trajectory window at t = {t}: {error}") from None
-            self._prepared = PreparedWindow(window)
+            self._prepared = PreparedWindow(window, self._compiled)
         return b"".join([getattr(window, name).tobytes() for name, _, _ in FIELDS])
 
 

@@ -46,12 +46,21 @@ stays an int in the store. Over Zenoh the component is stepped with `step`.
 A class names its parameter model with `ModelReference("module:Name")`, imported
 when first read: a component process, which only constructs and steps its
 component, then starts without pydantic.
+
+While its host constructs it, a component may ask `expected_steps()` how many
+steps the process that hosts it will ask of it: the run's, when the process
+hosts only that run (a component process; the master's own process under `cosim
+run`), else None (a Python session may run again). A component with a costly
+set-up that only pays off over many steps (loading compiled code) can then do
+without it for a short run.
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import importlib
-from collections.abc import Callable, Mapping, Sequence, Set
+from collections.abc import Callable, Iterator, Mapping, Sequence, Set
 from dataclasses import dataclass
 from typing import Any, ClassVar, Union
 
@@ -187,6 +196,26 @@ def is_frozen(value: Any) -> bool:
     base = value.base
     return value.flags.owndata or (isinstance(base, np.ndarray) and base.flags.owndata
                                    and not base.flags.writeable)
+
+
+_expected_steps: contextvars.ContextVar[int | None] = contextvars.ContextVar("expected_steps",
+                                                                           default=None)
+
+
+def expected_steps() -> int | None:
+    """During the construction of a component by its host: the steps its process will ask
+    of it (see the module docstring); None when unknown, and outside a construction."""
+    return _expected_steps.get()
+
+
+@contextlib.contextmanager
+def constructing_for(steps: int | None) -> Iterator[None]:
+    """Around a host's construction of a component: `expected_steps()` gives `steps`."""
+    token = _expected_steps.set(steps)
+    try:
+        yield
+    finally:
+        _expected_steps.reset(token)
 
 
 def ports_by_name(ports: tuple[Port, ...]) -> dict[str, Port]:

@@ -43,6 +43,7 @@ import operator
 from collections.abc import Mapping, Sequence
 
 from cosim.component import Component, ComponentError, ModelReference, Port, Value
+from controllers import jit
 from controllers.backstepping import step_kernel
 from controllers.backstepping.lateral import (AdaptationSettings, LateralGains, ScalarLateralLaw,
                                               singular_steer_error)
@@ -143,7 +144,7 @@ class BacksteppingController(Component):
             self.limits.min_torque, self.limits.max_delta, self.limits.max_delta_rate, self.mu_min,
             self.mu_max, self.g_mu)
         assert len(constants) == step_kernel.STEP_SIZE
-        compiled = compiled_step()
+        compiled = jit.for_this_component(compiled_step)
         self._step, self._constants = ((compiled.step, compiled.constants(constants)) if compiled is not None
                                        else (step_kernel.step, constants))
 

@@ -228,7 +228,8 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
         result = run_scenario(loaded, folder, progress=sys.stdout.isatty(), deploy=settings,
                               clock=clock, on_live=_print_live, on_folder=_print_folder,
                               observers=observers, on_warning=print_warning,
-                              before_tick0=interrupts.raise_if_swallowed, **run_options)
+                              before_tick0=interrupts.raise_if_swallowed,
+                              single_run=interrupts.is_cosim_command(), **run_options)
     result.mcap = loaded.record.mcap
     return result
 

@@ -166,7 +166,8 @@ class WorkerChild:
         request = {"op": "start", "run_id": hosted.run_id, "run_token": hosted.run_token,
                    "component": spec.name,
                    "class_path": spec.class_path, "parameters": _jsonable(spec),
-                   "period_ticks": int(spec.period_ticks), "connect": [hosted.endpoint]}
+                   "period_ticks": int(spec.period_ticks), "steps": spec.steps,
+                   "connect": [hosted.endpoint]}
         if spec.class_path == FMU_HOST_CLASS:
             request["fmu"] = fmu_payload(spec)  # the file travels; the worker checks its hash
         reply = ask_worker(hosted.session, worker, request, START_TIMEOUT_S)

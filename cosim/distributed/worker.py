@@ -47,6 +47,7 @@ from cosim.distributed.deploy import (DeploySettings, check_endpoint, session_mo
 from cosim.errors import UserError
 from cosim.fmu.remote import FMU_HOST_CLASS, store_fmu
 from cosim.transport.inproc import PythonComponentLaunch
+from cosim.transport.launch import steps_from_json
 from cosim.distributed.placement import RESERVED_HOSTS
 from cosim.distributed.service import stop_event_with_signals
 from cosim.transport.zenoh.config import check_key_chunk, master_alive_key
@@ -216,7 +217,8 @@ class Worker:
         if not token:
             raise ValueError("start request without a run_token")
         launch = PythonComponentLaunch(component, class_path, parameters,
-                                       int(request.get("period_ticks", 1)))
+                                       int(request.get("period_ticks", 1)),
+                                       steps=steps_from_json(request.get("steps")))
         # behind a router (client mode) the component falls back to the router when the
         # master's own endpoint cannot be reached from here
         session_conf = zenoh_settings(self.settings, self.mode, [],

@@ -91,7 +91,8 @@ def plan_launches(scenario: Any, import_classes: bool = True) -> list[PythonComp
             default = getattr(cls, "default_period", None)
         period = scenario.period_ticks(name, default)
         parameters = with_data_files(dict(spec.parameters), scenario.base_dir)
-        launches.append(PythonComponentLaunch(name, spec.python, parameters, period, roots))
+        launches.append(PythonComponentLaunch(name, spec.python, parameters, period, roots,
+                                              steps=scenario.total_ticks // period))
     return launches
 
 

@@ -7,6 +7,7 @@ array layouts and the step order.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -69,8 +70,8 @@ def _validate_prepared(scenario: Any, prepared: Any,
     for plan in prepared.fmus:
         ports[plan.name] = (plan.interface.inputs, plan.interface.outputs)
         feedthrough[plan.name] = False
-    for launch in prepared.launches:
-        comp = construct_component(launch)
+    for launch in prepared.launches:  # built for their ports, never stepped
+        comp = construct_component(dataclasses.replace(launch, steps=0))
         ports[launch.name] = (tuple(comp.inputs), tuple(comp.outputs))
         feedthrough[launch.name] = True
     ports = {name: ports[name] for name in prepared.names}

@@ -12,7 +12,8 @@ from __future__ import annotations
 import importlib
 from collections.abc import Mapping, Sequence, Set
 
-from cosim.component import Component, ComponentError, Port, Value, ports_by_name, values_step
+from cosim.component import (Component, ComponentError, Port, Value, constructing_for, ports_by_name,
+                             values_step)
 from cosim.errors import ComponentFailure, UserError, did_you_mean
 from cosim.transport.launch import PythonComponentLaunch  # re-exported: its historical home
 from cosim.transport.parameters import ParameterProblem, check_parameters  # ParameterProblem re-exported
@@ -72,7 +73,8 @@ def construct_component(launch: PythonComponentLaunch) -> Component:
     cls = import_component_class(launch.class_path, launch.name)
     check_parameters(cls, launch)
     try:
-        instance = cls(**dict(launch.parameters))
+        with constructing_for(launch.steps):
+            instance = cls(**dict(launch.parameters))
         ports_by_name(tuple(instance.inputs))
         ports_by_name(tuple(instance.outputs))
     except (ComponentError, ValueError) as exc:

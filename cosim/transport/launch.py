@@ -23,6 +23,9 @@ class PythonComponentLaunch:
         period_ticks: master ticks between two steps (>= 1).
         import_path: folders in front of the import path of the process that hosts it
             (`cosim.scenario.imports.import_roots`); () means the working directory.
+        steps: the steps the run asks of it (its ticks over its period), when known; the
+            host offers them to the constructor (`cosim.component.expected_steps`) when
+            its process hosts only this run.
     """
 
     name: str
@@ -30,3 +33,9 @@ class PythonComponentLaunch:
     parameters: Mapping[str, Any] = field(default_factory=dict)
     period_ticks: int = 1
     import_path: tuple[str, ...] = ()
+    steps: int | None = None
+
+
+def steps_from_json(value: Any) -> int | None:
+    """A launch's `steps` as a spec or a start request carries it: None when absent or not a count."""
+    return value if isinstance(value, int) and not isinstance(value, bool) and value >= 0 else None

@@ -136,7 +136,7 @@ def test_plan_launches_imports_a_class_only_when_its_period_is_needed(tmp_path):
     launches = plan_launches(scenario, import_classes=False)
     roots = (str(tmp_path), os.getcwd())  # the scenario's folder, then the cwd
     assert launches[0] == PythonComponentLaunch("gain", "no_such_module_here:Gain", {"k": 3.0}, 2,
-                                                roots)
+                                                roots, steps=25)  # 50 ticks, every second one
     assert [l.name for l in launches] == ["gain", "ramp"] and launches[1].period_ticks == 1
 
 

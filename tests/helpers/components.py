@@ -322,3 +322,19 @@ class ShortLane(Tracker):
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         values = Tracker.step_values(self, t, tuple(inputs[name] for name in self.input_names))
         return dict(zip(self.output_names, values))
+
+
+class StepsSeen(Component):
+    """Outputs the `cosim.component.expected_steps()` its constructor saw (-1: None)."""
+
+    inputs = ()
+    outputs = (Port("steps"),)
+
+    def __init__(self) -> None:
+        from cosim.component import expected_steps
+
+        seen = expected_steps()
+        self.seen = -1.0 if seen is None else float(seen)
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        return {"steps": self.seen}

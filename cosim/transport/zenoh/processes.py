@@ -140,6 +140,7 @@ class ChildProcess:
         if spec.name != self.name:
             raise ValueError(f"spec of {spec.name!r} sent to the process of {self.name!r}")
         line = json.dumps({"class_path": spec.class_path, "period_ticks": spec.period_ticks,
+                           "steps": spec.steps,
                            "parameters": json.loads(_params_json(spec)),
                            **self._session}).encode() + b"\n"
         if len(line) <= PIPE_SAFE_BYTES:

@@ -42,6 +42,7 @@ from cosim.errors import UserError
 from cosim.transport.inproc import (ParameterProblem, PythonComponentLaunch, construct_component,
                           describe_exception)
 from cosim.engine.startup import process_age_s
+from cosim.transport.launch import steps_from_json
 from cosim.engine.values import lane_result_problem
 from cosim.transport.zenoh import auth, config
 from cosim.transport.zenoh.auth import Credential
@@ -256,7 +257,8 @@ def _launch(args: argparse.Namespace) -> PythonComponentLaunch | None:
     args.handshake_timeout_s = float(spec.get("handshake_timeout_s") or HANDSHAKE_TIMEOUT_S)
     return PythonComponentLaunch(name=args.name, class_path=str(spec["class_path"]),
                                  parameters=dict(spec["parameters"]),
-                                 period_ticks=int(spec["period_ticks"]))
+                                 period_ticks=int(spec["period_ticks"]),
+                                 steps=steps_from_json(spec.get("steps")))
 
 
 def serve(args: argparse.Namespace) -> int:
