@@ -5,6 +5,8 @@ network namespaces are in test_distributed_netns.py."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import os
 import threading
 from pathlib import Path
@@ -191,6 +193,16 @@ def test_component_on_worker_matches_inproc_bit_for_bit(worker):
         assert remote.stop() == local.stop()
         assert hosted.components["echo"].start(0.0, {"u": 1.0}) == {"y": 2.0}
     assert run_processes(run_id) == []
+
+
+def test_a_component_on_a_worker_is_told_its_steps(worker):
+    there = dataclasses.replace(launch("there", "StepsSeen"), steps=4321)
+    here = dataclasses.replace(launch("here", "StepsSeen"), steps=12)  # this host's own process
+    with DistributedComponents([there, here], f"t-w-steps-{os.getpid()}", 5.0,
+                               placement={"there": "w1"},
+                               settings=settings_for(worker.endpoint)) as hosted:
+        assert hosted.components["there"].start(0.0, {}) == {"steps": 4321.0}
+        assert hosted.components["here"].start(0.0, {}) == {"steps": 12.0}
 
 
 def test_missing_worker_fails_before_start_naming_it_and_the_reachable_ones(worker):
