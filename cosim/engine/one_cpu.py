@@ -225,6 +225,19 @@ def _affinity(tid: int) -> set[int]:
         return set()
 
 
+def cpus_beside() -> set[int]:
+    """The CPUs a process started now from this thread would work on beside the lockstep
+    chain: the pinned chain's others (`release`), else this thread's CPUs when it has
+    several; empty when it would share this thread's one CPU (a sweep worker's own CPU)."""
+    if _active is not None:
+        return _active.others() - {_active.cpu}
+    try:
+        allowed = set(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # no affinity on this platform: the OS places it
+        return set(range(os.cpu_count() or 1)) if (os.cpu_count() or 1) > 1 else set()
+    return allowed if len(allowed) > 1 else set()
+
+
 def pinned_cpu() -> int | None:
     """The chain's CPU while a `PinnedChain` is open in this process, else None."""
     return _active.cpu if _active is not None else None

@@ -16,8 +16,9 @@ see `cosim.results.csv_writer`) through an mmap window, then bumps the spool's
 row count: every completed tick is in the kernel when the tick completes, even
 if the master is then killed (SIGKILL, a segfault in FMU code). A writer
 process tails the spools and appends the CSV text on the other core: started
-at tick 0 for a run of `WRITER_AT_ONCE_ROWS` rows or more, else after
-`FLUSH_INTERVAL_S` (a short run is converted at close, without a process);
+at tick 0 for a run of `WRITER_AT_ONCE_ROWS` rows or more when a CPU beside the
+loop's is free for it (`one_cpu.cpus_beside`), else after `FLUSH_INTERVAL_S` (a
+short run is converted at close, without a process);
 `close` (which the master's caller runs in
 `finally`) lets it finish, checks its row counts (rebuilding the CSV in this
 process if the writer failed) and removes the spools unless `keep_spool`. So
@@ -214,8 +215,8 @@ class Recorder:
         include / exclude: fnmatch globs over "component.signal".
         flush_interval: wall time in seconds before the CSV writer process
             starts (a short run is converted at close, without a process); None:
-            at tick 0 for a run of `WRITER_AT_ONCE_ROWS` rows or more, else
-            `FLUSH_INTERVAL_S`.
+            at tick 0 for a run of `WRITER_AT_ONCE_ROWS` rows or more with a CPU
+            beside the loop's, else `FLUSH_INTERVAL_S`.
         keep_spool: keep the binary spools after the CSV files are complete.
         on_writer: called with the CSV writer process's pid once it starts.
         every: keep every `every`-th tick in the output files (ticks 0, N, 2N, ...
@@ -297,8 +298,8 @@ class Recorder:
         self._array_groups = sorted(groups.items())
         self._arrays_seen: Any = None
         self._started = time.monotonic()
-        if self.flush_interval is None:
-            at_once = ticks is not None and ticks + 1 >= WRITER_AT_ONCE_ROWS
+        if self.flush_interval is None:  # at once only where it can convert beside the loop
+            at_once = ticks is not None and ticks + 1 >= WRITER_AT_ONCE_ROWS and one_cpu.cpus_beside()
             self.flush_interval = 0.0 if at_once else FLUSH_INTERVAL_S
         if self.flush_interval <= 0.0:
             self._start_writer()

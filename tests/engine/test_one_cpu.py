@@ -225,3 +225,13 @@ def test_a_sweep_sample_leaves_the_placement_to_the_os(tmp_path):
     metrics = run_scenario_sample(SCENARIOS_DIR / "lane_change.yaml", ["duration=0.5"],
                                   tmp_path / "sample", "zenoh")
     assert metrics and json.loads((tmp_path / "sample" / "manifest.json").read_text())["lockstep_cpu"] is None
+
+
+def test_cpus_beside_the_chain_are_its_others_else_this_threads_several():
+    with one_cpu.PinnedChain("auto") as chain:
+        before = one_cpu.cpus_beside()
+        allowed = set(os.sched_getaffinity(0))
+        assert before == (allowed if len(allowed) > 1 else set())
+        if chain.pin() is not None:
+            assert one_cpu.cpus_beside() == allowed - {chain.cpu}
+    assert one_cpu.cpus_beside() == before

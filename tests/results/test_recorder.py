@@ -22,6 +22,7 @@ from cosim.transport.inproc import InprocComponent, PythonComponentLaunch
 from cosim.engine.master import Master
 from cosim.results.csv_writer import RowFormatter, format_rows, read_header
 from cosim.errors import UserError
+from cosim.engine import one_cpu
 from cosim.results import recorder as recorder_module
 from cosim.results.recorder import Recorder, read_signals, selected, write_json
 from cosim.results.recover import recover
@@ -212,23 +213,37 @@ def test_write_json_replaces_non_finite(tmp_path):
     assert json.loads((tmp_path / "m.json").read_text()) == {"a": None, "b": [1.5, None], "c": "x"}
 
 
+class WriterAtTick1:
+    """Observer after the recorder: its writer process at tick 1, before the first
+    housekeeping (row 16) could start it, so only tick 0 did."""
+
+    seen = False
+    pid: int | None = None
+
+    def begin(self, master):
+        self.recorder = master.observers[0]
+
+    def after_tick(self, tick, t, values, arrays):
+        if tick == 1:
+            self.seen, self.pid = True, self.recorder.writer_pid
+
+
 @pytest.mark.parametrize("ticks, at_tick0", [(recorder_module.WRITER_AT_ONCE_ROWS - 1, True),
                                               (recorder_module.WRITER_AT_ONCE_ROWS - 2, False)])
 def test_a_long_run_starts_its_writer_at_tick_0_a_short_one_converts_at_close(
-        tmp_path, ticks, at_tick0):
-    seen = []
-
-    class AtTick1:
-        def begin(self, master):
-            self.recorder = master.observers[0]
-
-        def after_tick(self, tick, t, values, arrays):
-            if tick == 1:  # before the first housekeeping (row 16): only tick 0 started it
-                seen.append(self.recorder.writer_pid)
-
-    master, snaps = _run(tmp_path, ticks=ticks, extra=[AtTick1()])
-    assert (seen[0] is not None) == at_tick0  # rows: ticks 0..N
+        tmp_path, ticks, at_tick0, monkeypatch):
+    monkeypatch.setattr(one_cpu, "cpus_beside", lambda: {1})  # a CPU free beside the loop's
+    writer = WriterAtTick1()
+    master, snaps = _run(tmp_path, ticks=ticks, extra=[writer])
+    assert (writer.pid is not None) == at_tick0  # rows: ticks 0..N
     assert (tmp_path / "signals.csv").read_bytes() == expected_files(master, snaps)["signals.csv"]
+
+
+def test_a_long_run_on_one_cpu_of_its_own_keeps_its_writer_for_later(tmp_path, monkeypatch):
+    monkeypatch.setattr(one_cpu, "cpus_beside", set)  # a sweep worker on its own CPU
+    writer = WriterAtTick1()
+    _run(tmp_path, ticks=recorder_module.WRITER_AT_ONCE_ROWS, extra=[writer])
+    assert writer.seen and writer.pid is None
 
 
 @pytest.mark.parametrize("flush_interval", [0.0, 1e9], ids=["writer-process", "at-close"])
