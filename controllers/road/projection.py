@@ -118,13 +118,17 @@ class PreparedWindow:
 
     Args:
         window: a valid trajectory window, or its fields as rows of a float64 matrix.
-        compiled: False keeps this window on the interpreted path even when the compiled one exists.
+        compiled: True: the compiled path when it exists (loading it at the first such call);
+            False: the interpreted one; None: the compiled one only if this process has
+            loaded it already (never numba's load in the middle of a run).
     """
 
-    def __init__(self, window: TrajectoryWindow | np.ndarray, compiled: bool = True) -> None:
+    def __init__(self, window: TrajectoryWindow | np.ndarray, compiled: bool | None = None) -> None:
         # one (field, point) matrix in controllers.trajectory.FIELDS order
         matrix = window if isinstance(window, np.ndarray) else np.array(
             [getattr(window, name) for name, _, _ in FIELDS], dtype=np.float64)
+        if compiled is None:
+            compiled = compiled_kernel.cache_info().currsize > 0
         kernel = compiled_kernel() if compiled else None
         self.compiled = self.compiled_pair = None
         self.chords = matrix.shape[1] - 1

@@ -446,7 +446,7 @@ def recorded_run(run_dir: str | Path, full_signals: tuple[list[str], np.ndarray]
         full_signals: (columns, rows) of every tick, or None.
 
     Raises:
-        AnalysisError: the folder or its signals.csv is missing or unreadable.
+        AnalysisError: the folder is missing (or, read by `load_run`, its signals.csv).
     """
     if full_signals is None:
         return load_run(run_dir)

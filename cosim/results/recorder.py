@@ -16,8 +16,8 @@ see `cosim.results.csv_writer`) through an mmap window, then bumps the spool's
 row count: every completed tick is in the kernel when the tick completes, even
 if the master is then killed (SIGKILL, a segfault in FMU code). A writer
 process tails the spools and appends the CSV text on the other core: started
-at tick 0 for a run of `WRITER_AT_ONCE_ROWS` rows or more when a CPU beside the
-loop's is free for it (`one_cpu.cpus_beside`), else after `FLUSH_INTERVAL_S` (a
+at tick 0 for a run whose files will hold `WRITER_AT_ONCE_VALUES` values or more
+when a CPU beside the loop's is free for it (`one_cpu.cpus_beside`), else after `FLUSH_INTERVAL_S` (a
 short run is converted at close, without a process);
 `close` (which the master's caller runs in
 `finally`) lets it finish, checks its row counts (rebuilding the CSV in this
@@ -72,10 +72,11 @@ ARRAYS_DIR = "arrays"
 WRITER_SCRIPT = Path(__file__).with_name("csv_writer.py")
 WRITER_STALL_S = 10.0  # a writer that converts nothing for this long is given up
 FLUSH_INTERVAL_S = 0.5  # a run still going after this long gets the writer process
-# a run of this many rows starts the writer at tick 0: converting them at close takes
-# the master about 40 ms (each float's repr; a 10 s sample's 1001 rows 15-25 ms), the
-# writer's start a few ms, and from then on it converts beside the loop
-WRITER_AT_ONCE_ROWS = 2000
+# a run whose files will hold this many values starts the writer at tick 0: converting
+# them at close would take the master about 90 ms (0.6 us a value, each float's repr;
+# a 10 s Satory sample has 82,000), the writer's start a few ms, and from then on it
+# converts beside the loop
+WRITER_AT_ONCE_VALUES = 150_000
 HOUSEKEEPING_ROWS = 15  # start the writer when due and check the folder every 16 rows
 FOLDER_CHECK_ROWS = 255  # look for a removed run folder every 256 rows (one fstat)
 WINDOW_BYTES = 1 << 20  # mmap window of a spool (about; whole rows and pages)
@@ -215,8 +216,8 @@ class Recorder:
         include / exclude: fnmatch globs over "component.signal".
         flush_interval: wall time in seconds before the CSV writer process
             starts (a short run is converted at close, without a process); None:
-            at tick 0 for a run of `WRITER_AT_ONCE_ROWS` rows or more with a CPU
-            beside the loop's, else `FLUSH_INTERVAL_S`.
+            at tick 0 for a run whose files will hold `WRITER_AT_ONCE_VALUES` values
+            or more, with a CPU beside the loop's, else `FLUSH_INTERVAL_S`.
         keep_spool: keep the binary spools after the CSV files are complete.
         on_writer: called with the CSV writer process's pid once it starts.
         every: keep every `every`-th tick in the output files (ticks 0, N, 2N, ...
@@ -299,10 +300,15 @@ class Recorder:
         self._arrays_seen: Any = None
         self._started = time.monotonic()
         if self.flush_interval is None:  # at once only where it can convert beside the loop
-            at_once = ticks is not None and ticks + 1 >= WRITER_AT_ONCE_ROWS and one_cpu.cpus_beside()
+            at_once = (ticks is not None and self._values_to_write(ticks) >= WRITER_AT_ONCE_VALUES
+                       and one_cpu.cpus_beside())
             self.flush_interval = 0.0 if at_once else FLUSH_INTERVAL_S
         if self.flush_interval <= 0.0:
             self._start_writer()
+
+    def _values_to_write(self, ticks: int) -> int:
+        """The values the files of a run of `ticks` ticks will hold (rows kept by `every`)."""
+        return sum(t.header.kept(ticks // t.period + 1) * len(t.header.columns) for t in self._tables)
 
     def _output(self, columns: list[str], array: str | None = None) -> dict[str, Any]:
         """The spool header's `every`, `formats` and per-column `meta` (an array's
@@ -425,7 +431,8 @@ class Recorder:
         if "parquet" in self.formats:
             for table in self._tables:
                 write_parquet(table.header)
-        self.full_signals = _map_rows(self._signals.header, self._signals.rows)
+        if self._tables:  # begun
+            self.full_signals = _map_rows(self._signals.header, self._signals.rows)
         if not self.keep_spool:
             for table in self._tables:
                 table.remove_spool()
@@ -518,11 +525,16 @@ def _read_while_progressing(process: subprocess.Popen[bytes], outputs: list[Path
 
 def _map_rows(header: SpoolHeader, rows: int) -> tuple[list[str], np.ndarray]:
     """Every row of a complete spool, mapped read-only (file-backed: it stays valid,
-    and costs no memory of its own, after the spool is removed)."""
+    and costs no memory of its own, after the spool is removed), as the CSV has them:
+    integer columns as their text reads back (`%d`: truncated, no -0.0), in a copy."""
     if rows == 0:
         return list(header.columns), np.empty((0, len(header.columns)))
     data = np.memmap(header.spool_path, dtype=np.float64, mode="r", offset=header.data_offset,
                      shape=(rows, len(header.columns)))
+    integers = [i for i, name in enumerate(header.columns) if name in header.integer_columns]
+    if integers:
+        data = np.array(data)
+        data[:, integers] = np.trunc(data[:, integers]) + 0.0  # + 0.0: -0.0 becomes 0.0
     return list(header.columns), data
 
 

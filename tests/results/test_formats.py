@@ -328,3 +328,28 @@ def test_a_decimated_run_has_the_full_runs_metrics_and_rows(tmp_path):
 
     again = analyse_run(load_run(tmp_path / "dec"))  # a later analysis of the folder says so
     assert any("every 10-th tick" in note for note in again.notes)
+
+
+
+class FractionalCounter(Component):
+    """An Int32 output that a careless component fills with fractions and a -0.0."""
+
+    outputs = (Port("n", type="Int32"),)
+    values = (0.0, 2.7, -0.0, -2.7, 5.0)
+
+    def step(self, t, inputs):
+        return {"n": self.values[round(t * 100) % len(self.values)]}
+
+
+def test_integer_columns_reach_the_metrics_as_the_csv_has_them(tmp_path):
+    recorder = Recorder(tmp_path)
+    master = Master({"c": _comp("c", FractionalCounter)}, [], tick=0.01, total_ticks=9,
+                    observers=[recorder])
+    try:
+        master.run()
+    finally:
+        recorder.close()
+    columns, rows = recorder.full_signals
+    names, csv = read_signals(tmp_path / "signals.csv")  # "%d" of each: truncated, "0" for -0.0
+    assert columns == names and rows.tobytes() == csv.tobytes()
+    assert sorted(set(rows[:, 1].tolist())) == [-2.0, 0.0, 2.0, 5.0]

@@ -228,22 +228,32 @@ class WriterAtTick1:
             self.seen, self.pid = True, self.recorder.writer_pid
 
 
-@pytest.mark.parametrize("ticks, at_tick0", [(recorder_module.WRITER_AT_ONCE_ROWS - 1, True),
-                                              (recorder_module.WRITER_AT_ONCE_ROWS - 2, False)])
+@pytest.mark.parametrize("threshold, at_tick0", [(1, True), (10**9, False)])
 def test_a_long_run_starts_its_writer_at_tick_0_a_short_one_converts_at_close(
-        tmp_path, ticks, at_tick0, monkeypatch):
+        tmp_path, threshold, at_tick0, monkeypatch):
     monkeypatch.setattr(one_cpu, "cpus_beside", lambda: {1})  # a CPU free beside the loop's
+    monkeypatch.setattr(recorder_module, "WRITER_AT_ONCE_VALUES", threshold)
     writer = WriterAtTick1()
-    master, snaps = _run(tmp_path, ticks=ticks, extra=[writer])
-    assert (writer.pid is not None) == at_tick0  # rows: ticks 0..N
+    master, snaps = _run(tmp_path, ticks=60, extra=[writer])
+    assert (writer.pid is not None) == at_tick0
     assert (tmp_path / "signals.csv").read_bytes() == expected_files(master, snaps)["signals.csv"]
 
 
 def test_a_long_run_on_one_cpu_of_its_own_keeps_its_writer_for_later(tmp_path, monkeypatch):
     monkeypatch.setattr(one_cpu, "cpus_beside", set)  # a sweep worker on its own CPU
+    monkeypatch.setattr(recorder_module, "WRITER_AT_ONCE_VALUES", 1)
     writer = WriterAtTick1()
-    _run(tmp_path, ticks=recorder_module.WRITER_AT_ONCE_ROWS, extra=[writer])
+    _run(tmp_path, ticks=60, extra=[writer])
     assert writer.seen and writer.pid is None
+
+
+@pytest.mark.parametrize("every", [1, 7])
+def test_the_values_a_run_will_write_are_counted_ahead(tmp_path, every):
+    master, snaps = _run(tmp_path, ticks=100, every=every)
+    written = sum((len(lines) - 1) * len(lines[0].split(","))
+                  for csv in tmp_path.rglob("*.csv")
+                  for lines in [csv.read_text().splitlines()])
+    assert snaps.recorder._values_to_write(100) == written > 0
 
 
 @pytest.mark.parametrize("flush_interval", [0.0, 1e9], ids=["writer-process", "at-close"])

@@ -47,6 +47,7 @@ def test_a_users_runtime_setting_reaches_the_child(monkeypatch):
 def fresh_process(monkeypatch):
     """This process as if no session had opened yet, with no ZENOH_RUNTIME of its own."""
     monkeypatch.setattr(runtime, "_chosen", False)
+    monkeypatch.setattr(runtime, "_one_thread_chosen", False)
     monkeypatch.delenv(runtime.ENV, raising=False)
 
 
@@ -68,6 +69,13 @@ def test_a_first_session_asked_for_the_pools_sets_nothing_and_chooses(fresh_proc
         assert runtime.ENV not in os.environ
     assert runtime._chosen
     with runtime.first_session():  # the process's runtime is chosen: the pools
+        assert runtime.ENV not in os.environ
+
+
+def test_asking_for_the_pools_after_one_thread_was_chosen_is_warned(fresh_process):
+    with runtime.first_session():
+        pass
+    with pytest.warns(RuntimeWarning, match="fresh process"), runtime.first_session(one_thread=False):
         assert runtime.ENV not in os.environ
 
 
@@ -135,7 +143,3 @@ def test_a_fresh_master_process_opens_its_session_on_one_thread_unless_told(
         pools = set(seen[process]) & set(POOLS)
         assert bool(pools) == pools_expected, (process, seen)
 
-
-def test_runs_with_workers_keep_the_default_pools():
-    from cosim.distributed.client import DistributedComponents
-    assert ZenohComponents.one_runtime_thread and not DistributedComponents.one_runtime_thread

@@ -53,7 +53,8 @@ def _child_env(run_id: str, import_path: Sequence[str] = (),
     OpenBLAS gets one thread unless the user says otherwise: a component works
     on small vectors, and numpy's import then starts no thread pool (about a
     third faster on a busy 2-core machine, and no oversubscription). Zenoh's
-    runtime likewise (`runtime`: one message in flight needs no pools).
+    runtime likewise (`runtime`: one message in flight needs no pools), unless
+    `one_runtime_thread` is False (a run with workers keeps Zenoh's pools).
     """
     env = runtime.child_environment(dict(os.environ)) if one_runtime_thread else dict(os.environ)
     env.setdefault("OPENBLAS_NUM_THREADS", "1")

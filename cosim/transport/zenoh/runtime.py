@@ -21,8 +21,9 @@ user's own included). That process opens its first session inside
 A `ZENOH_RUNTIME` the user set is left alone (`ZENOH_RUNTIME='()'` gives Zenoh's
 default pools).
 
-Runs with workers (`cosim.distributed`) keep the default pools in the master, its
-local components and every worker's children: with one runtime thread, a link
+Runs with workers or deployment settings (`cosim.distributed`) keep the default pools
+in the master, its local components and every worker's children, when the master's
+process has not chosen one thread for an earlier run (a Python session: it is warned): with one runtime thread, a link
 cut mid-run left the master waiting past every deadline instead of naming the
 lost worker (tests/distributed/test_netns.py, the link-cut test). A network
 that can fail needs the rx and tx pools to notice it while the app thread waits.
@@ -32,6 +33,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import warnings
 from collections.abc import Iterator, MutableMapping
 
 ENV = "ZENOH_RUNTIME"
@@ -39,6 +41,10 @@ ONE_THREAD = ("(app: (worker_threads: 1), acc: (handover: app), tx: (handover: a
               "rx: (handover: app), net: (handover: app))")
 DEFAULT_POOLS = "()"  # Zenoh's own defaults, for a comparison
 _chosen = False  # first_session has run in this process: later sessions share its runtime
+_one_thread_chosen = False  # ... and chose one runtime thread
+POOLS_TOO_LATE = ("this process runs Zenoh on one runtime thread (chosen by its first run); a run "
+                  "with workers then may not notice a cut link before its deadline: run it in a "
+                  "fresh process (cosim run does), or set ZENOH_RUNTIME='()' before the first run")
 
 
 def child_environment(env: MutableMapping[str, str]) -> MutableMapping[str, str]:
@@ -57,12 +63,14 @@ def first_session(one_thread: bool = True) -> Iterator[None]:
     processes see the user's; later calls change nothing (Zenoh's runtime is chosen by
     then, and other threads may be reading the environment).
     """
-    global _chosen
+    global _chosen, _one_thread_chosen
+    if not one_thread and _one_thread_chosen:
+        warnings.warn(POOLS_TOO_LATE, RuntimeWarning, stacklevel=3)
     if _chosen or not one_thread or ENV in os.environ:
         _chosen = True
         yield
         return
-    _chosen = True  # whatever happens below: the environment is touched once per process
+    _chosen = _one_thread_chosen = True  # whatever happens below: touched once per process
     os.environ[ENV] = ONE_THREAD
     try:
         yield
