@@ -82,12 +82,18 @@ def load_compiled(what: str, load: Callable[[], Any], disagreement: Callable[[An
     return kernel
 
 
+def is_loaded(gate: Callable[[], Any]) -> bool:
+    """Whether this process has asked `gate` (a compiled part's loader, cached by functools)
+    already: numba's cost is paid, or the answer (None) is known."""
+    return gate.cache_info().currsize > 0  # type: ignore[attr-defined]
+
+
 def for_this_component(gate: Callable[[], Any]) -> Any | None:
     """`gate()` (a compiled part's loader, cached by functools, which calls `load_compiled`),
     or None for the interpreted path when COSIM_JIT is auto, the part is not loaded in this
     process yet and the component being built will step fewer than SHORT_RUN_STEPS times
     (`cosim.component.expected_steps`; unknown: compiled)."""
-    if gate.cache_info().currsize == 0 and jit_mode()[0] == "auto":  # type: ignore[attr-defined]
+    if not is_loaded(gate) and jit_mode()[0] == "auto":
         steps = expected_steps()
         if steps is not None and steps < SHORT_RUN_STEPS:
             return None

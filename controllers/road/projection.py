@@ -128,7 +128,7 @@ class PreparedWindow:
         matrix = window if isinstance(window, np.ndarray) else np.array(
             [getattr(window, name) for name, _, _ in FIELDS], dtype=np.float64)
         if compiled is None:
-            compiled = compiled_kernel.cache_info().currsize > 0
+            compiled = jit.is_loaded(compiled_kernel)
         kernel = compiled_kernel() if compiled else None
         self.compiled = self.compiled_pair = None
         self.chords = matrix.shape[1] - 1

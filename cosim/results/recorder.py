@@ -17,10 +17,9 @@ row count: every completed tick is in the kernel when the tick completes, even
 if the master is then killed (SIGKILL, a segfault in FMU code). A writer
 process tails the spools and appends the CSV text on the other core: started
 at tick 0 for a run whose files will hold `WRITER_AT_ONCE_VALUES` values or more
-when a CPU beside the loop's is free for it (`one_cpu.cpus_beside`), else after `FLUSH_INTERVAL_S` (a
-short run is converted at close, without a process);
-`close` (which the master's caller runs in
-`finally`) lets it finish, checks its row counts (rebuilding the CSV in this
+when a CPU beside the loop's is free for it (`one_cpu.cpus_beside`), else after
+`FLUSH_INTERVAL_S` (a short run is converted at close, without a process);
+`close` (which the master's caller runs in `finally`) lets it finish, checks its row counts (rebuilding the CSV in this
 process if the writer failed) and removes the spools unless `keep_spool`. So
 a failing component loses nothing before its tick; if the master process
 itself dies, the run's supervisor (`cosim.execution.supervisor`) or `recover`

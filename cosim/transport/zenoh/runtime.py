@@ -21,12 +21,12 @@ user's own included). That process opens its first session inside
 A `ZENOH_RUNTIME` the user set is left alone (`ZENOH_RUNTIME='()'` gives Zenoh's
 default pools).
 
-Runs with workers or deployment settings (`cosim.distributed`) keep the default pools
-in the master, its local components and every worker's children, when the master's
-process has not chosen one thread for an earlier run (a Python session: it is warned): with one runtime thread, a link
-cut mid-run left the master waiting past every deadline instead of naming the
-lost worker (tests/distributed/test_netns.py, the link-cut test). A network
-that can fail needs the rx and tx pools to notice it while the app thread waits.
+Runs with workers or deployment settings (`cosim.distributed`) keep the default
+pools in the master, its local components and every worker's children, unless the
+master's process chose one thread for an earlier run (a Python session: it is
+warned). With one runtime thread, a link cut mid-run left the master waiting past
+every deadline instead of naming the lost worker (tests/distributed/test_netns.py,
+the link-cut test); why is not known.
 """
 
 from __future__ import annotations
