@@ -20,7 +20,11 @@ clusters, interleaved with the first: N runs of the same length. A sweep's
 start (client, checks) and end (results, close) cost ~30 ms whatever its
 size, a tenth of a 6-run sweep on 2 workers; in N = 24 runs they weigh a
 quarter of that. It is printed after the first (`--samples`) workload's
-figures, which stay the benchmark's figure against the target.
+figures, which stay the benchmark's figure against the target. From the two
+workloads' median sweep times, each worker count's sweep time is then split
+into a fixed part and a cost per run (a line through the two points): how far
+the runs alone scale, and how much a sweep's start, end and last-run imbalance
+(3 runs each on 2 workers: the sweep waits for the slower worker) weigh.
 
     .venv/bin/python benchmarks/bench_sweep.py [--samples 8] [--seconds 20] [--repeats 2]
         [--long-samples 24] [--transport inproc|zenoh] [--workers 1 2]
@@ -141,6 +145,7 @@ def main() -> None:
                                  f"{args.long_samples} samples ")
         figures.update(more)
         rows += more_rows
+        figures.update(fixed_and_per_run(args, rates))
     emit_results("bench_sweep", {**figures, "samples": args.samples, "long samples": args.long_samples,
                                  "seconds": args.seconds, "transport": args.transport,
                                  "load": f"{before} -> {load_average()}"}, rows)
@@ -172,6 +177,46 @@ def report(args: argparse.Namespace, samples: int, rates: dict[tuple[int, int], 
                     f"runs/min: {scaling:.2f}x (cores busy {figures[prefix + '1 workers cores busy']:.2f} / "
                     f"{figures[prefix + '2 workers cores busy']:.2f})", f">= {TARGET}x", scaling >= TARGET)
     return figures, [row]
+
+
+def sweep_parts(samples: tuple[int, int], seconds_per_sweep: tuple[float, float]) -> tuple[float, float]:
+    """(fixed ms per sweep, ms per run) of a straight line through two workloads' sweep times.
+
+    Args:
+        samples: the two workloads' runs per sweep (distinct).
+        seconds_per_sweep: their sweep times, in seconds.
+    """
+    (n_a, n_b), (t_a, t_b) = samples, seconds_per_sweep
+    per_run = (t_b - t_a) / (n_b - n_a)
+    return (t_a - n_a * per_run) * 1e3, per_run * 1e3
+
+
+def fixed_and_per_run(args: argparse.Namespace,
+                      rates: dict[tuple[int, int], list[float]]) -> dict[str, float]:
+    """Each worker count's sweep time split into a part that does not grow with the runs
+    (client, checks, dispatch, results, the wait for the slower worker: what keeps a short
+    sweep from scaling) and a cost per run, from the median sweep times of the two
+    workloads; printed, and returned as figures.
+
+    Not a row of the README's table: the fixed part is the difference of two noisy times
+    (it came out -11 to 59 ms in three runs of the quick settings); the cost per run, and
+    so how far the runs alone scale, is the steadier figure.
+    """
+    if 1 not in args.workers or 2 not in args.workers or args.long_samples in (0, args.samples):
+        return {}
+    workloads = (args.samples, args.long_samples)
+    figures: dict[str, float] = {}
+    for n in (1, 2):
+        times = tuple(size / statistics.median(rates[size, n]) * 60.0 for size in workloads)
+        fixed, per_run = sweep_parts(workloads, times)
+        figures[f"{n} workers fixed ms"], figures[f"{n} workers ms per run"] = fixed, per_run
+    per_run_scaling = figures["1 workers ms per run"] / figures["2 workers ms per run"]
+    figures["per-run scaling"] = per_run_scaling
+    text = (f"fixed part {figures['1 workers fixed ms']:.0f} / {figures['2 workers fixed ms']:.0f} ms a "
+            f"sweep, {figures['1 workers ms per run']:.1f} / {figures['2 workers ms per run']:.1f} ms a run: "
+            f"the runs alone scale {per_run_scaling:.2f}x")
+    print(f"1 / 2 workers, a line through the medians of both workloads: {text}")
+    return figures
 
 
 if __name__ == "__main__":
