@@ -140,3 +140,26 @@ def test_the_closed_loop_reader_gives_one_row_per_projection():
     assert interpreted["figure"] == ("43.0 µs/tick = 232x real time "
                                      "(controller 25.8, planner 7.0, master 5.8, FMU 5.5 µs)")
     assert compiled["measure"].endswith("compiled projection and step (numba)") and compiled["met"] is True
+
+
+FMU_STEP_OUTPUT = (
+    "FMU                     step us  null us  step-null  C-loop us  step/null  C-loop/null\n"
+    "Bicycle.fmu                7.94     6.83       1.11       1.09       1.16         0.16\n"
+    "Vehicle8DOF.fmu           10.74     6.92       3.82       4.18       1.55         0.60\n"
+    "FMU                           per-call            shim  ratio    raw per-call        raw shim  ratio  outputs\n"
+    "Vehicle8DOF.fmu         10.28 /  10.59   6.63 /   6.92   1.53   7.22 /   7.40   5.49 /   5.72   1.29  bit-identical\n"
+    "Bicycle.fmu              6.75 /   6.87   3.10 /   3.22   2.13   3.68 /   3.76   1.98 /   2.07   1.82  bit-identical\n")
+
+
+def test_fmu_step_rows_put_the_physics_beside_the_host_step():
+    physics, host = run_all_rows.fmu_step(FMU_STEP_OUTPUT)
+    assert physics["figure"] == "4.18 vs 6.92 µs: 0.60" and physics["met"] is True
+    assert host["figure"] == ("10.59 vs 6.92 µs (1.53x), outputs bit-identical; "
+                              "the model's physics alone 4.18 µs (C loop)")
+    assert host["target"] == "<= 3 µs (issue 14)" and host["met"] is False
+
+
+def test_fmu_step_host_row_without_the_physics_table():
+    shim_only = FMU_STEP_OUTPUT.split("FMU                           per-call")[1]
+    (host,) = run_all_rows.fmu_step(shim_only)
+    assert host["figure"] == "10.59 vs 6.92 µs (1.53x), outputs bit-identical"
