@@ -229,7 +229,7 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
                               clock=clock, on_live=_print_live, on_folder=_print_folder,
                               observers=observers, on_warning=print_warning,
                               before_tick0=interrupts.raise_if_swallowed,
-                              single_run=interrupts.is_cosim_command(), **run_options)
+                              runs_in_process=1 if interrupts.is_cosim_command() else None, **run_options)
     result.mcap = loaded.record.mcap
     return result
 

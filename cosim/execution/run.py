@@ -89,7 +89,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  fmu_log: bool = False, strict: bool = False,
                  on_warning: Callable[[str], None] | None = None,
                  before_tick0: Callable[[], None] | None = None,
-                 lockstep_cpu: str | int = "auto", single_run: bool = False) -> RunResult:
+                 lockstep_cpu: str | int = "auto", runs_in_process: int | None = None) -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -127,9 +127,11 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         lockstep_cpu: "auto", "off" or a CPU number: from tick 0, the one CPU of the master
             and of the processes it started, when there are any (`cosim.engine.one_cpu`);
             the manifest's `lockstep_cpu` says which CPU, null for none.
-        single_run: this process hosts only this run (`cosim run`): its in-process
-            components are told their steps too (`cosim.component.expected_steps`), as
-            component processes always are.
+        runs_in_process: at most this many runs, this one included, in this process
+            (`cosim run`: 1; a sweep's own cluster: its samples): its in-process components
+            are told this run's steps times that (`cosim.component.expected_steps`), as
+            component processes (one run each) are told theirs; None (a Python session,
+            a cluster that outlives the sweep): unknown, not told.
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -170,7 +172,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                                    placement, deploy, limits)
             options = _Options(fmu_hosting.start_time(scenario, all_fmus),
                                fmu_hosting.deadlines(scenario, prepared.names, deadline_s),
-                               fmu_log, page, tuple(observers), chain, single_run)
+                               fmu_log, page, tuple(observers), chain, runs_in_process)
             hosted = _host_components(prepared, remote, in_master, clock, out, options)
             _check_gaps(scenario, hosted, all_fmus, strict, on_warning)
             if before_tick0 is not None:
@@ -198,7 +200,7 @@ class _Options:
     page: Any  # cosim.execution.supervisor.ControlPage, or None (not supervised)
     observers: tuple[Any, ...] = ()  # more master observers, after the recorder
     chain: Any = None  # cosim.engine.one_cpu.PinnedChain: the CPU of the lockstep chain
-    single_run: bool = False  # this process hosts only this run (see run_scenario)
+    runs_in_process: int | None = None  # most runs this process hosts (see run_scenario)
 
 
 def _make_run_folder(out: Path) -> Path:
@@ -328,8 +330,9 @@ def _host_components(prepared: PreparedRun, remote: Any, in_master: set[str], cl
     if here:
         from cosim.transport.inproc import InprocComponent
 
-        if not options.single_run:  # this process may run again: the run's steps say little
-            here = [dataclasses.replace(launch, steps=None) for launch in here]
+        runs = options.runs_in_process  # None: this process may run again, the run's steps say little
+        here = [dataclasses.replace(launch, steps=None if runs is None or launch.steps is None
+                                    else launch.steps * runs) for launch in here]
         hosted.update({launch.name: InprocComponent(launch) for launch in here})
     if remote is not None:
         _preload()

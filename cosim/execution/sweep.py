@@ -152,7 +152,7 @@ class SweepResult:
 
 
 def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: Path,
-                        transport: str) -> dict[str, float]:
+                        transport: str, runs_in_process: int | None = None) -> dict[str, float]:
     """Run one sample for real and return its metrics (the default run function).
 
     Args:
@@ -160,6 +160,9 @@ def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: 
         overrides: "PATH=VALUE" strings, as `cosim run --set`.
         run_dir: the sample's run folder.
         transport: "inproc" or "zenoh".
+        runs_in_process: at most how many samples this worker process runs (a cluster the
+            sweep starts and closes: all of them), None when unknown (a cluster joined
+            with a scheduler address); see `cosim.execution.run.run_scenario`.
 
     Raises:
         UserError: the scenario or the run failed (the message says why).
@@ -174,7 +177,8 @@ def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: 
     # could choose the same one); the worker's own CPU, if it has one (worker_cpus), holds the
     # sample's processes too, since they start from the worker's thread
     result = run_scenario(load_scenario(scenario_path, list(overrides)), out_dir=run_dir,
-                          transport=transport, progress=False, lockstep_cpu="off")
+                          transport=transport, progress=False, lockstep_cpu="off",
+                          runs_in_process=runs_in_process)
     if result.status != "ok":
         raise UserError(result.error or f"run ended with status {result.status!r}")
     # one parse and one analysis of the run folder: metrics.json then holds the
@@ -559,7 +563,11 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
         # joining a running cluster, nothing is saved by checking a sample here first
         check = SampleCheck(scenario_path, [overrides for _, overrides, _ in jobs], roots,
                             local=0 if scheduler else 1)
-    task = partial(_run_task, run_fn or run_scenario_sample, scenario_path, transport, roots)
+        # the worker processes of a cluster of our own run this sweep's samples and no more
+        # (threads of this process, processes=False, or a joined cluster's: they may run again)
+        own_processes = scheduler is None and (cluster_options or {}).get("processes", True)
+        run_fn = partial(run_scenario_sample, runs_in_process=samples if own_processes else None)
+    task = partial(_run_task, run_fn, scenario_path, transport, roots)
     outcomes = execute_samples(task, jobs, scheduler, cluster_options, check)
     results = [SampleResult(i, [float(x) for x in row], status, metrics, error)
                for (i, row), (status, metrics, error) in zip(enumerate(points), outcomes)]

@@ -61,3 +61,45 @@ def test_the_cosim_run_command_tells_its_own_components(tmp_path):
     lines = (tmp_path / "run" / "signals.csv").read_text().splitlines()
     column = lines[0].split(",").index("seen.steps")
     assert {line.split(",")[column] for line in lines[1:]} == {"50.0"}
+
+
+@pytest.mark.integration
+def test_a_session_told_how_many_runs_its_process_hosts_tells_its_components(tmp_path):
+    from cosim.execution.run import run_scenario
+    from cosim.scenario.loader import load_scenario
+
+    scenario = tmp_path / "steps_seen.yaml"
+    scenario.write_text(SCENARIO)
+    result = run_scenario(load_scenario(scenario), out_dir=tmp_path / "run", transport="inproc",
+                          progress=False, runs_in_process=3)
+    assert result.status == "ok"
+    assert set(result.full_signals[1][:, result.full_signals[0].index("seen.steps")]) == {150.0}
+
+
+def _steps_seen_by_sweep_samples(tmp_path, **options) -> set[float]:
+    import numpy as np
+
+    from cosim.execution.sweep import run_sweep
+
+    scenario = tmp_path / "steps_seen.yaml"
+    scenario.write_text(SCENARIO)
+    result = run_sweep(scenario, ["duration=1.0:1.0"], 2, out_dir=tmp_path / "sweep", **options)
+    assert not result.failures, result.failures
+    seen = set()
+    for folder in sorted((tmp_path / "sweep" / "samples").iterdir()):
+        lines = (folder / "signals.csv").read_text().splitlines()
+        column = lines[0].split(",").index("seen.steps")
+        seen |= set(np.array([float(line.split(",")[column]) for line in lines[1:]]))
+    return seen
+
+
+@pytest.mark.integration
+def test_a_sweeps_own_worker_processes_are_told_the_steps_of_every_sample(tmp_path):
+    # 2 samples of 50 steps: a worker process of the sweep's own cluster runs at most both
+    assert _steps_seen_by_sweep_samples(tmp_path) == {100.0}
+
+
+@pytest.mark.integration
+def test_sweep_workers_in_this_process_are_not_told(tmp_path):
+    # threads of the caller's process, which may run again
+    assert _steps_seen_by_sweep_samples(tmp_path, cluster_options={"processes": False}) == {-1.0}
