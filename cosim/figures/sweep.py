@@ -15,6 +15,8 @@ from matplotlib.figure import Figure
 
 from cosim.figures.layouts import save_png
 
+MARGINS_IN = {"left": 0.7, "right": 0.2, "bottom": 0.55, "top": 0.65}  # figure edges to the panels
+
 
 def sweep_figure(samples: dict[str, list[float]], summary: dict[str, dict[str, float]],
                  title: str = "sweep") -> Figure:
@@ -28,7 +30,14 @@ def sweep_figure(samples: dict[str, list[float]], summary: dict[str, dict[str, f
     names = [n for n in summary if samples.get(n)]
     cols = min(4, max(1, len(names)))
     rows = max(1, math.ceil(len(names) / cols))
-    fig = Figure(figsize=(4 * cols, 3 * rows), layout="constrained")
+    width, height = 4.0 * cols, 3.0 * rows
+    fig = Figure(figsize=(width, height))
+    # every panel has the same furniture (a count axis, a title, a label), so fixed margins in
+    # inches fit any grid; the constrained layout engine took a third of the drawing time
+    # (15 panels: 0.81-0.87 -> 0.50-0.58 s), most of a short `cosim sweep` after its runs
+    fig.subplots_adjust(left=MARGINS_IN["left"] / width, right=1 - MARGINS_IN["right"] / width,
+                        bottom=MARGINS_IN["bottom"] / height, top=1 - MARGINS_IN["top"] / height,
+                        wspace=0.4, hspace=0.7)
     axes = np.atleast_1d(fig.subplots(rows, cols)).ravel()
     for ax, name in zip(axes, names):
         ax.hist(samples[name], bins=min(20, max(1, len(samples[name]))), color="tab:blue",

@@ -208,6 +208,27 @@ def test_sweep_histograms_one_panel_per_metric(tmp_path):
     assert sum(patch.get_height() for patch in visible[2].patches) == 3
 
 
+@pytest.mark.parametrize("panels", [1, 3, 5, 15])
+def test_sweep_histogram_panels_and_their_labels_neither_overlap_nor_leave_the_figure(panels):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from cosim.figures.sweep import sweep_figure
+
+    samples = {f"controller.metric_{i}_rms": [10.0 ** (i % 7 - 3) * v for v in (-1.5, 0.2, 2.5)]
+               for i in range(panels)}
+    summary = {name: summarize(values) for name, values in samples.items()}
+    fig = sweep_figure(samples, summary)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    page = fig.bbox
+    boxes = [ax.get_tightbbox(renderer) for ax in fig.axes if ax.get_visible()]
+    assert len(boxes) == panels
+    for box in boxes:
+        assert page.x0 <= box.x0 and box.x1 <= page.x1 and page.y0 <= box.y0 and box.y1 <= page.y1
+    for i, first in enumerate(boxes):
+        for second in boxes[i + 1:]:
+            assert not first.overlaps(second)
+
+
 def test_sweep_summary_prints_failures_verbatim(tmp_path, capsys):
     from cosim.cli.analysis import _print_summary
     from cosim.execution.sweep import SampleResult, SweepResult
