@@ -24,7 +24,13 @@ figures, which stay the benchmark's figure against the target. From the two
 workloads' median sweep times, each worker count's sweep time is then split
 into a fixed part and a cost per run (a line through the two points): how far
 the runs alone scale, and how much a sweep's start, end and last-run imbalance
-(3 runs each on 2 workers: the sweep waits for the slower worker) weigh.
+(on 2 workers each runs half the samples: the sweep waits for the slower worker) weigh.
+
+The clusters are joined by address (`run_sweep(scheduler=)`), so their workers are not
+told how many runs they host (`run_scenario(runs_in_process=)`) and the controller loads
+its compiled step whatever the length (COSIM_JIT=auto, numba installed); a one-off
+`cosim sweep` of short samples, which starts its own cluster, runs them interpreted. The
+benchmark times the warm, compiled runs a long sweep makes.
 
     .venv/bin/python benchmarks/bench_sweep.py [--samples 8] [--seconds 20] [--repeats 2]
         [--long-samples 24] [--transport inproc|zenoh] [--workers 1 2]
@@ -210,6 +216,12 @@ def fixed_and_per_run(args: argparse.Namespace,
         times = tuple(size / statistics.median(rates[size, n]) * 60.0 for size in workloads)
         fixed, per_run = sweep_parts(workloads, times)
         figures[f"{n} workers fixed ms"], figures[f"{n} workers ms per run"] = fixed, per_run
+    if min(figures["1 workers ms per run"], figures["2 workers ms per run"]) <= 0.0:
+        # the longer workload was not slower: the times are noise, the line says nothing
+        print("1 / 2 workers, a line through the medians of both workloads: no cost per run "
+              f"above 0 ({figures['1 workers ms per run']:.1f} / {figures['2 workers ms per run']:.1f} ms), "
+              "the sweep times too noisy to split")
+        return {}
     per_run_scaling = figures["1 workers ms per run"] / figures["2 workers ms per run"]
     figures["per-run scaling"] = per_run_scaling
     text = (f"fixed part {figures['1 workers fixed ms']:.0f} / {figures['2 workers fixed ms']:.0f} ms a "

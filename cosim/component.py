@@ -50,8 +50,9 @@ component, then starts without pydantic.
 While its host constructs it, a component may ask `expected_steps()` how many
 steps the process that hosts it will ask of it: the run's, when the process
 hosts only that run (a component process; the master's own process under `cosim
-run`), at most the run's times the samples in a sweep's own Dask workers, else
-None (a Python session may run again). A component with a costly
+run`); in a sweep's own Dask workers, the run's times the sweep's samples (an
+estimate: a worker runs some of them, and samples that vary the duration or a
+period differ in length); else None (a Python session may run again). A component with a costly
 set-up that only pays off over many steps (loading compiled code) can then do
 without it for a short run.
 """

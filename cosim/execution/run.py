@@ -127,11 +127,13 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         lockstep_cpu: "auto", "off" or a CPU number: from tick 0, the one CPU of the master
             and of the processes it started, when there are any (`cosim.engine.one_cpu`);
             the manifest's `lockstep_cpu` says which CPU, null for none.
-        runs_in_process: at most this many runs, this one included, in this process
-            (`cosim run`: 1; a sweep's own cluster: its samples): its in-process components
-            are told this run's steps times that (`cosim.component.expected_steps`), as
-            component processes (one run each) are told theirs; None (a Python session,
-            a cluster that outlives the sweep): unknown, not told.
+        runs_in_process: how many runs this process hosts, this one included (`cosim
+            run`: 1; a sweep's own cluster: its samples, an upper bound of the count):
+            its in-process components are told this run's steps times that
+            (`cosim.component.expected_steps`), as component processes (one run each) are
+            told theirs; an estimate when the runs differ in length (a sweep that varies
+            the duration or a period); None (a Python session, a cluster that outlives
+            the sweep): unknown, not told. At least 1.
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
@@ -139,6 +141,9 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         UserError for anything wrong before tick 0 (scenario, FMU, wiring).
     """
     check_run_options(transport, realtime)
+    if runs_in_process is not None and (isinstance(runs_in_process, bool)
+                                        or not isinstance(runs_in_process, int) or runs_in_process < 1):
+        raise UserError(f"runs_in_process must be a whole number from 1 up, or None; got {runs_in_process!r}")
     one_cpu.check_setting(lockstep_cpu, "lockstep_cpu")
     limits = limits or RunLimits()
     check_ticks(scenario, limits)  # before the run folder: a refused run leaves nothing

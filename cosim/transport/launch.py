@@ -24,8 +24,8 @@ class PythonComponentLaunch:
         import_path: folders in front of the import path of the process that hosts it
             (`cosim.scenario.imports.import_roots`); () means the working directory.
         steps: the steps the run asks of it (its ticks over its period), when known; the
-            host offers them to the constructor (`cosim.component.expected_steps`) when
-            its process hosts only this run.
+            host offers them to the constructor (`cosim.component.expected_steps`), times
+            the runs its process hosts when it knows them (`run_scenario(runs_in_process=)`).
     """
 
     name: str

@@ -37,3 +37,11 @@ def test_split_per_worker_count_from_median_rates(capsys):
 def test_no_split_without_both_worker_counts_and_two_workloads(workers, long_samples):
     args = argparse.Namespace(workers=workers, samples=6, long_samples=long_samples)
     assert bench_sweep.fixed_and_per_run(args, {}) == {}
+
+
+def test_no_split_when_the_longer_workload_was_not_slower(capsys):
+    # noise: 24 runs on 2 workers took no longer than 6, so the line has no cost per run
+    args = argparse.Namespace(workers=[1, 2], samples=6, long_samples=24)
+    rates = {(6, 1): [60.0], (24, 1): [120.0], (6, 2): [120.0], (24, 2): [480.0]}
+    assert bench_sweep.fixed_and_per_run(args, rates) == {}
+    assert "no cost per run above 0" in capsys.readouterr().out

@@ -103,3 +103,26 @@ def test_a_sweeps_own_worker_processes_are_told_the_steps_of_every_sample(tmp_pa
 def test_sweep_workers_in_this_process_are_not_told(tmp_path):
     # threads of the caller's process, which may run again
     assert _steps_seen_by_sweep_samples(tmp_path, cluster_options={"processes": False}) == {-1.0}
+
+
+@pytest.mark.integration
+def test_workers_of_a_joined_cluster_are_not_told(tmp_path):
+    # a cluster given by its scheduler's address outlives the sweep: its workers may run again
+    from cosim.execution.sweep import local_cluster
+
+    with local_cluster(1) as cluster:
+        assert _steps_seen_by_sweep_samples(tmp_path, scheduler=cluster.scheduler_address) == {-1.0}
+
+
+@pytest.mark.parametrize("runs", [0, -2, 1.5, True, "3"])
+def test_a_count_of_runs_below_one_or_not_whole_is_refused(tmp_path, runs):
+    from cosim.errors import UserError
+    from cosim.execution.run import run_scenario
+    from cosim.scenario.loader import load_scenario
+
+    scenario = tmp_path / "steps_seen.yaml"
+    scenario.write_text(SCENARIO)
+    with pytest.raises(UserError, match="runs_in_process must be a whole number from 1 up"):
+        run_scenario(load_scenario(scenario), out_dir=tmp_path / "run", transport="inproc",
+                     progress=False, runs_in_process=runs)
+    assert not (tmp_path / "run").exists()

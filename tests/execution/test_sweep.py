@@ -200,7 +200,8 @@ def test_sweep_histograms_one_panel_per_metric(tmp_path):
     samples = {"rms_yc": [0.1, 0.2, 0.4], "max_abs_ex": [1.0, 2.0, 3.0], "cone_hits": [0, 1, 1],
                "mu_hat_final": [0.5, 0.6, 0.7], "max_abs_ay": [2.0, 2.5, 2.2]}
     summary = {name: summarize(values) for name, values in samples.items()}
-    fig = sweep_figure(samples, summary)
+    fig = sweep_figure(samples, summary, "sweep: 3 samples, 0 failed")
+    assert fig.get_suptitle() == "sweep: 3 samples, 0 failed"
     visible = [ax for ax in fig.axes if ax.get_visible()]
     assert [ax.get_title() for ax in visible] == [f"{n} (n=3)" for n in samples]
     p95 = [line for line in visible[0].get_lines() if line.get_label() == "p95"][0]
@@ -208,20 +209,47 @@ def test_sweep_histograms_one_panel_per_metric(tmp_path):
     assert sum(patch.get_height() for patch in visible[2].patches) == 3
 
 
-@pytest.mark.parametrize("panels", [1, 3, 5, 15])
-def test_sweep_histogram_panels_and_their_labels_neither_overlap_nor_leave_the_figure(panels):
+def _many_samples(name_length: int) -> dict[str, list[float]]:
+    """Three metrics of 120,000 samples (bins of ~2x10^4: counts labelled 20k) whose names
+    are `name_length` characters long, separated by dots and underscores only."""
+    stem = "controller.lateral_error_rms_over_the_whole_manoeuvre_in_metres"
+    values = np.random.default_rng(3).normal(size=120_000).tolist()
+    return {f"{i}{stem}"[:name_length]: values for i in range(3)}
+
+
+def _sweep_figure_boxes(samples):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     from cosim.figures.sweep import sweep_figure
 
-    samples = {f"controller.metric_{i}_rms": [10.0 ** (i % 7 - 3) * v for v in (-1.5, 0.2, 2.5)]
-               for i in range(panels)}
     summary = {name: summarize(values) for name, values in samples.items()}
     fig = sweep_figure(samples, summary)
     renderer = FigureCanvasAgg(fig).get_renderer()
+    title = fig.get_suptitle() and fig._suptitle.get_window_extent(renderer)
+    return fig, [title] + [ax.get_tightbbox(renderer) for ax in fig.axes if ax.get_visible()]
+
+
+@pytest.mark.parametrize("panels", [1, 3, 5, 15])
+def test_sweep_histogram_panels_and_their_labels_neither_overlap_nor_leave_the_figure(panels):
+    samples = {f"controller.metric_{i}_rms": [10.0 ** (i % 7 - 3) * v for v in (-1.5, 0.2, 2.5)]
+               for i in range(panels)}
+    fig, boxes = _sweep_figure_boxes(samples)
+    _assert_inside_and_apart(fig, boxes, panels)
+
+
+@pytest.mark.parametrize("name_length", [12, 41, 64])
+def test_large_counts_and_long_metric_names_stay_inside_their_panels(name_length):
+    fig, boxes = _sweep_figure_boxes(_many_samples(name_length))
+    _assert_inside_and_apart(fig, boxes, 3)
+    counts = [label.get_text() for label in fig.axes[0].get_yticklabels()]
+    assert "0" in counts and "10k" in counts, counts
+    titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
+    assert all("".join(t.split("\n")).startswith(n) for t, n in zip(titles, _many_samples(name_length)))
+
+
+def _assert_inside_and_apart(fig, boxes, panels):
     page = fig.bbox
-    boxes = [ax.get_tightbbox(renderer) for ax in fig.axes if ax.get_visible()]
-    assert len(boxes) == panels
+    assert len(boxes) == 1 + panels  # the figure's title, then the panels
     for box in boxes:
         assert page.x0 <= box.x0 and box.x1 <= page.x1 and page.y0 <= box.y0 and box.y1 <= page.y1
     for i, first in enumerate(boxes):
