@@ -12,7 +12,7 @@ import sys
 import datetime
 import signal
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, Optional
 
@@ -22,6 +22,7 @@ from cosim.cli import interrupts
 from cosim.cli.common import STRICT_HELP, print_warning, user_error_exit
 from cosim.engine import one_cpu
 from cosim.errors import UserError
+from cosim.execution.figure_process import FigureProcess
 from cosim.execution.finish import analyse_run_folder  # shared with cosim.run (the Python API)
 from cosim.scenario.shipped import resolve_scenario
 from cosim.execution.limits import DEFAULT_MAX_TICKS, RunLimits
@@ -116,16 +117,34 @@ def run(
         if status is not None:  # the supervisor: the master has ended
             raise typer.Exit(status)
         clock.after_fork(cpu_before_fork)  # the master's CPU time counts the parsing too
+    drawer = FigureProcess() if figures else None  # started at tick 0: its imports overlap the run
+    try:
+        result = _start_and_run(scenario_file, set_, out_dir, (deploy, listen, connect), clock,
+                                (foxglove, foxglove_host), prestart and transport == "zenoh"
+                                and not (place or listen or connect or deploy),
+                                transport=transport, realtime=realtime, place=place,
+                                deadline_s=deadline, limits=limits, fmu_log=fmu_log,
+                                strict=strict, lockstep_cpu=chain_setting,
+                                at_tick0=drawer.start if drawer is not None else None)
+        _finish_run(result, figures, mcap, drawer)
+    finally:
+        if drawer is not None:
+            drawer.close()
+
+
+def _start_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path],
+                   endpoints: tuple[Optional[Path], list[str], list[str]], clock: Any,
+                   foxglove: tuple[Optional[int], str], prestart: bool, **run_options: Any) -> Any:
+    """`_load_and_run`, the components started while the scenario loads when `prestart`;
+    a user error or a Ctrl-C before tick 0 becomes the command's exit."""
     early = None
     try:
-        if prestart and transport == "zenoh" and not (place or listen or connect or deploy):
+        if prestart:
             from cosim.execution.prestart import prestart_components
 
             early = prestart_components(scenario_file)  # their start overlaps the scenario's load
-        result = _load_and_run(scenario_file, set_, out_dir, (deploy, listen, connect), clock,
-                               (foxglove, foxglove_host), transport=transport, realtime=realtime,
-                               place=place, deadline_s=deadline, prestart=early, limits=limits,
-                               fmu_log=fmu_log, strict=strict, lockstep_cpu=chain_setting)
+        return _load_and_run(scenario_file, overrides, out, endpoints, clock, foxglove,
+                             prestart=early, **run_options)
     except UserError as error:
         raise user_error_exit(error) from None
     except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
@@ -139,7 +158,6 @@ def run(
     finally:
         if early is not None:
             early.close()
-    _finish_run(result, figures, mcap)
 
 
 def _list_shipped() -> typer.Exit:
@@ -196,7 +214,8 @@ def _interrupted_exit(stop_error: str | None = None) -> typer.Exit:
 
 def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path],
                   endpoints: tuple[Optional[Path], list[str], list[str]], clock: Any,
-                  foxglove: tuple[Optional[int], str] = (None, ""), **run_options: Any) -> Any:
+                  foxglove: tuple[Optional[int], str] = (None, ""),
+                  at_tick0: Optional[Callable[[], None]] = None, **run_options: Any) -> Any:
     """Load the scenario, name its run folder, then run it (SIGTERM ends it cleanly).
 
     Args:
@@ -206,6 +225,8 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
         endpoints: `--deploy` file, `--listen` and `--connect` values.
         clock: the cosim.engine.startup.StartupClock of the command (marks "scenario_loaded").
         foxglove: `--foxglove` port (None: no live server) and `--foxglove-host`.
+        at_tick0: called once everything is hosted, just before the master starts (after
+            a Ctrl-C that a library swallowed is raised): the start-up has the CPUs to itself.
         run_options: passed on to `cosim.execution.run.run_scenario`.
     Returns:
         The cosim.execution.run.RunResult.
@@ -228,7 +249,7 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
         result = run_scenario(loaded, folder, progress=sys.stdout.isatty(), deploy=settings,
                               clock=clock, on_live=_print_live, on_folder=_print_folder,
                               observers=observers, on_warning=print_warning,
-                              before_tick0=interrupts.raise_if_swallowed,
+                              before_tick0=_then(interrupts.raise_if_swallowed, at_tick0),
                               runs_in_process=1 if interrupts.is_cosim_command() else None, **run_options)
     result.mcap = loaded.record.mcap
     return result
@@ -239,18 +260,30 @@ def _print_folder(folder: Path) -> None:
     print(f"run folder: {folder}", flush=True)
 
 
-def _finish_run(result: Any, figures: bool, mcap: bool = False) -> None:
+def _then(first: Callable[[], None], second: Optional[Callable[[], None]]) -> Callable[[], None]:
+    """`first`, then `second` when given."""
+    if second is None:
+        return first
+
+    def both() -> None:
+        first()
+        second()
+    return both
+
+
+def _finish_run(result: Any, figures: bool, mcap: bool = False, drawer: Any = None) -> None:
     """Analyse the run folder and print the summary; a failed run exits with status 1.
 
     Args:
         result: the cosim.execution.run.RunResult.
         figures: draw the run's figures.
         mcap: write run.mcap (also when the scenario's record.mcap is set).
+        drawer: the FigureProcess started with the run, or None (drawn here).
     """
     from cosim.cli.summary import print_summary
 
     if result.ticks > 0 and result.out_dir.is_dir():  # a removed folder has nothing to analyse
-        for note in analyse_run_folder(result, figures):
+        for note in analyse_run_folder(result, figures, drawer):
             print(note)
         if mcap or getattr(result, "mcap", False):
             from cosim.cli.foxglove import write_mcap_note

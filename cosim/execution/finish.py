@@ -16,7 +16,7 @@ import json
 from typing import Any
 
 
-def analyse_run_folder(result: Any, figures: bool) -> list[str]:
+def analyse_run_folder(result: Any, figures: bool, drawer: Any = None) -> list[str]:
     """Merge the run metrics into metrics.json and draw the figures; notes to print.
 
     A run folder that cannot be analysed (e.g. a signals.csv that cannot be read)
@@ -25,21 +25,30 @@ def analyse_run_folder(result: Any, figures: bool) -> list[str]:
     Args:
         result: a cosim.execution.run.RunResult (its metrics are refreshed from metrics.json).
         figures: draw the PNG figures too.
+        drawer: a `cosim.execution.figure_process.FigureProcess` started with the run,
+            which draws them (asked before the metrics are written, so both go on at
+            once); None or not started: drawn in this process.
     """
     from cosim.analysis.metrics import write_metrics
     from cosim.analysis.rundata import recorded_run
 
+    full_signals = getattr(result, "full_signals", None)
     try:  # the recorder's rows, not signals.csv parsed back, for metrics and figures
-        run = recorded_run(result.out_dir, getattr(result, "full_signals", None))
+        run = recorded_run(result.out_dir, full_signals)
     except Exception as exc:  # analysis is best effort after a run
         return [f"metrics not computed: {exc}"] + ([f"figures not drawn: {exc}"] if figures else [])
+    drawer = drawer if drawer is not None and drawer.started else None
+    if figures and drawer is not None:
+        drawer.send(result.out_dir, full_signals)
     notes: list[str] = []
     try:
         write_metrics(result.out_dir, run=run)
         result.metrics = json.loads((result.out_dir / "metrics.json").read_text())
     except Exception as exc:
         notes.append(f"metrics not computed: {exc}")
-    if figures:
+    if figures and drawer is not None:
+        notes += drawer.notes()
+    elif figures:
         try:
             from cosim.figures.layouts import draw_figures
 
