@@ -4,7 +4,8 @@ Drawing a run's figure after it costs matplotlib's import and its first-draw set
 (fonts, caches) on top of the drawing itself. `cosim run` therefore starts
 `python -m cosim.figures.drawing_process` (the child side, whose docstring has the
 protocol) with the run: the child does that set-up while the run goes, on a CPU the
-lockstep chain leaves free, then waits for the run's rows. After the run `send` hands
+lockstep chain leaves free (with a single CPU it is not started), then waits for the
+run's rows. After the run `send` hands
 it the run folder and the recorder's rows (before this process writes the metrics,
 which then overlap the drawing) and `notes` returns what `analyse_run_folder` prints:
 "figure: PATH" or "figures not drawn: WHY".
@@ -43,8 +44,12 @@ class FigureProcess:
         return self._process is not None
 
     def start(self) -> None:
-        """Start the process now (once); if it cannot start, `started` stays False."""
-        if self._process is not None:
+        """Start the process now (once), if this thread has a CPU beside the one the
+        lockstep chain will take (on one CPU its import would slow the run by as much as
+        it saves after); if it cannot start, `started` stays False."""
+        from cosim.engine import one_cpu
+
+        if self._process is not None or not one_cpu.cpus_beside():
             return
         try:
             self._stderr = tempfile.TemporaryFile()

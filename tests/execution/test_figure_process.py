@@ -66,6 +66,17 @@ def test_without_a_drawing_process_the_figure_is_drawn_here(short_run):
     assert figure.is_file()
 
 
+def test_with_one_cpu_there_is_no_drawing_process(monkeypatch):
+    # its import would take the run's own CPU for as long as it saves afterwards
+    from cosim.engine import one_cpu
+
+    monkeypatch.setattr(one_cpu, "cpus_beside", lambda: set())
+    drawer = FigureProcess()
+    drawer.start()
+    assert not drawer.started
+    drawer.close()
+
+
 def test_a_process_never_asked_ends_quietly_when_closed():
     drawer = FigureProcess()
     drawer.start()
