@@ -9,7 +9,10 @@ process, and prints the peak resident set size (VmHWM from /proc) of:
   before the recorder closes) and at the end of the run folder's analysis
   (metrics and figures, as `cosim run` ends: that step loads the whole run);
 - each component process (controller, planner) and the recorder's CSV
-  writer process, read at the last tick while they still run.
+  writer process, read at the last tick while they still run;
+- the process that draws the figure, started before tick 0 as `cosim run`
+  starts it (`cosim.execution.figure_process`), read until it exits (VmHWM
+  is a high-water mark: the last read holds its peak).
 
 DESIGN.md wants memory flat with duration: the long run's peak within 10 % of
 the short one's (`ratio`). Memory is not timing: one run each is enough.
@@ -24,6 +27,8 @@ import json
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -75,17 +80,46 @@ def child(duration: float, transport: str, figures: bool) -> None:
     from cosim.execution.run import run_scenario
     from cosim.scenario.loader import load_scenario
 
+    from cosim.execution.figure_process import FigureProcess
+
     probe = PeakAtLastTick()
+    drawer = FigureProcess()
     with tempfile.TemporaryDirectory(prefix="bench-memory-") as tmp:
         scenario = load_scenario(SCENARIO, [f"duration={duration:g}"])
         result = run_scenario(scenario, Path(tmp) / "run", transport=transport, progress=False,
-                              observers=[probe])
+                              observers=[probe], before_tick0=drawer.start if figures else None)
         if result.status != "ok":
             raise SystemExit(f"bench_memory: run failed: {result.error}")
-        analyse_run_folder(result, figures=figures)
+        drawer_peak = _PeakUntilExit(drawer.pid)
+        notes = analyse_run_folder(result, figures=figures, drawer=drawer)
+        drawer.close()
+        if figures and not any(note.startswith("figure: ") for note in notes):
+            raise SystemExit(f"bench_memory: no figure: {notes}")
         probe.peaks["master (with metrics and figures)"] = peak_kib()
+        if drawer.started:
+            probe.peaks["figure process (with metrics and figures)"] = drawer_peak.result()
         probe.peaks["ticks"] = result.ticks
     print(json.dumps(probe.peaks))
+
+
+class _PeakUntilExit(threading.Thread):
+    """Reads a process's VmHWM every 10 ms until it exits; `result()` is the last read."""
+
+    def __init__(self, pid: int | None) -> None:
+        super().__init__(daemon=True)
+        self.pid, self.peak = pid, None
+        if pid is not None:
+            self.start()
+
+    def run(self) -> None:
+        while (peak := peak_kib(self.pid)) is not None:
+            self.peak = peak
+            time.sleep(0.01)
+
+    def result(self) -> int | None:
+        if self.pid is not None:
+            self.join()
+        return self.peak
 
 
 def measure(duration: float, transport: str, figures: bool) -> dict[str, int | None]:
@@ -114,30 +148,31 @@ def main() -> None:
     peaks = {d: measure(d, args.transport, not args.no_figures) for d in (short, long)}
     print(f"satory_nominal over {args.transport}: peak RSS (VmHWM) in MiB, {short:g} s vs {long:g} s "
           f"({peaks[short]['ticks']} vs {peaks[long]['ticks']} ticks); load average {load}")
-    print(f"{'process':<38}{f'{short:g} s':>10}{f'{long:g} s':>10}{'ratio':>8}  flat (< {TARGET:.0%})")
+    print(f"{'process':<44}{f'{short:g} s':>10}{f'{long:g} s':>10}{'ratio':>8}  flat (< {TARGET:.0%})")
     results = {}
     for name in peaks[short]:
         if name == "ticks":
             continue
         a, b = peaks[short][name], peaks[long].get(name)
         if not a or not b:
-            print(f"{name:<38}{'-':>10}{'-':>10}")
+            print(f"{name:<44}{'-':>10}{'-':>10}")
             continue
         ratio = b / a
         flat = "yes" if abs(ratio - 1) < TARGET else "NO"
-        print(f"{name:<38}{a / 1024:>10.1f}{b / 1024:>10.1f}{ratio:>8.3f}  {flat}")
+        print(f"{name:<44}{a / 1024:>10.1f}{b / 1024:>10.1f}{ratio:>8.3f}  {flat}")
         results[name] = {"short_mib": a / 1024, "long_mib": b / 1024, "ratio": ratio}
     emit_results("bench_memory", {"durations": [short, long], "transport": args.transport,
                                   "peaks": results, "load": load}, table_rows(short, long, results))
 
 
 def table_rows(short: float, long: float, results: dict[str, dict[str, float]]) -> list[dict]:
-    """Two rows: the run's processes (through the last tick) and the master with the analysis."""
+    """Two rows: the run's processes (through the last tick), and the master and the figure's
+    process with the analysis."""
     run = {n: r for n, r in results.items() if "with metrics" not in n}
     after = {n: r for n, r in results.items() if "with metrics" in n}
     rows = []
     for label, group in ((f"peak RSS, {long:g} s / {short:g} s run, every process through the last tick", run),
-                         (f"peak RSS, {long:g} s / {short:g} s run, master after metrics and figures", after)):
+                         (f"peak RSS, {long:g} s / {short:g} s run, after metrics and figures (drawn in their process)", after)):
         if group:
             text = "; ".join(f"{n.replace(' (through the last tick)', '').replace(' (with metrics and figures)', '')}"
                              f" {r['short_mib']:.0f} -> {r['long_mib']:.0f} MiB ({r['ratio']:.2f})"

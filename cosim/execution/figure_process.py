@@ -21,9 +21,10 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+if TYPE_CHECKING:  # numpy is loaded after the run's spawn (tests/execution/test_startup.py)
+    import numpy as np
 
 CHILD = [sys.executable, "-m", "cosim.figures.drawing_process"]
 
@@ -37,6 +38,11 @@ class FigureProcess:
         self._stderr: Any = None  # a file: a pipe the child filled while this one reads stdout would block both
         self._sent = False
         self._send_problem: str | None = None
+
+    @property
+    def pid(self) -> int | None:
+        """The process's id once started, else None."""
+        return self._process.pid if self._process is not None else None
 
     @property
     def started(self) -> bool:
@@ -74,6 +80,8 @@ class FigureProcess:
         try:
             stdin.write(json.dumps(header).encode() + b"\n")
             if rows is not None and rows.size:
+                import numpy as np
+
                 stdin.write(memoryview(np.ascontiguousarray(rows, dtype=np.float64)).cast("B"))
             stdin.close()
         except OSError as exc:  # it ended early (BrokenPipeError): `notes` says how
