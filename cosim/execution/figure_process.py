@@ -10,8 +10,9 @@ it the run folder and the recorder's rows (before this process writes the metric
 which then overlap the drawing) and `notes` returns what `analyse_run_folder` prints:
 "figure: PATH" or "figures not drawn: WHY".
 
-When the process cannot start, the caller draws in its own process; when it dies or
-breaks its protocol, the note says so (the run and its files are not touched).
+When the process cannot start, or exits with an error before answering, the caller
+draws in its own process; when a signal ends it or it breaks its protocol, the note
+says so (the run and its files are not touched).
 """
 
 from __future__ import annotations
@@ -87,8 +88,12 @@ class FigureProcess:
         except OSError as exc:  # it ended early (BrokenPipeError): `notes` says how
             self._send_problem = exc.strerror or str(exc)
 
-    def notes(self) -> list[str]:
-        """Wait for the figure; the notes to print (see the module docstring)."""
+    def notes(self) -> list[str] | None:
+        """Wait for the figure; the notes to print (see the module docstring), or None when
+        the process exited by itself with an error before any answer (it could not run at
+        all, e.g. an import failed): the caller then draws in its own process. A process
+        killed by a signal (a crash, the OOM killer) gets a note: drawing the same figure
+        here could take the command down with it."""
         process = self._process
         assert process is not None and process.stdout is not None and self._sent, "send the run first"
         try:
@@ -105,6 +110,9 @@ class FigureProcess:
                              else f"figures not drawn: {message['error']}")
             except (ValueError, KeyError, TypeError):
                 notes.append(f"figures not drawn: the drawing process wrote {line[:200]!r}")
+        if not notes and process.returncode > 0:
+            self.close()
+            return None
         if not notes:
             why = f"the drawing process ended with status {process.returncode}"
             if self._send_problem is not None:

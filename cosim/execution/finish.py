@@ -46,9 +46,10 @@ def analyse_run_folder(result: Any, figures: bool, drawer: Any = None) -> list[s
         result.metrics = json.loads((result.out_dir / "metrics.json").read_text())
     except Exception as exc:
         notes.append(f"metrics not computed: {exc}")
-    if figures and drawer is not None:
-        notes += drawer.notes()
-    elif figures:
+    drawn = drawer.notes() if figures and drawer is not None else None
+    if drawn is not None:
+        notes += drawn
+    elif figures:  # no process, or one that could not run: drawn here
         try:
             from cosim.figures.layouts import draw_figures
 

@@ -59,6 +59,20 @@ def test_a_drawing_process_that_died_leaves_a_note_and_the_run(short_run):
     assert json.loads((short_run.out_dir / "metrics.json").read_text())  # the metrics are there
 
 
+@pytest.mark.integration
+def test_a_drawing_process_that_could_not_run_leaves_the_figure_to_this_process(short_run, monkeypatch):
+    # e.g. the package not importable from its interpreter: it exits 1 before any answer
+    import cosim.execution.figure_process as figure_process
+
+    monkeypatch.setattr(figure_process, "CHILD", [sys.executable, "-c", "raise SystemExit(1)"])
+    figure = short_run.out_dir / "figure_manoeuvre.png"
+    figure.unlink(missing_ok=True)
+    drawer = FigureProcess()
+    drawer.start()
+    assert analyse_run_folder(short_run, figures=True, drawer=drawer) == [f"figure: {figure}"]
+    assert figure.is_file()
+
+
 def test_without_a_drawing_process_the_figure_is_drawn_here(short_run):
     figure = short_run.out_dir / "figure_manoeuvre.png"
     figure.unlink(missing_ok=True)
