@@ -87,7 +87,7 @@ def child(duration: float, transport: str, figures: bool) -> None:
     with tempfile.TemporaryDirectory(prefix="bench-memory-") as tmp:
         scenario = load_scenario(SCENARIO, [f"duration={duration:g}"])
         result = run_scenario(scenario, Path(tmp) / "run", transport=transport, progress=False,
-                              observers=[probe], before_tick0=drawer.start if figures else None)
+                              observers=[probe], at_tick0=drawer.start if figures else None)
         if result.status != "ok":
             raise SystemExit(f"bench_memory: run failed: {result.error}")
         drawer_peak = _PeakUntilExit(drawer.pid)

@@ -117,7 +117,7 @@ def run(
         if status is not None:  # the supervisor: the master has ended
             raise typer.Exit(status)
         clock.after_fork(cpu_before_fork)  # the master's CPU time counts the parsing too
-    drawer = FigureProcess() if figures else None  # started at tick 0: its imports overlap the run
+    drawer = FigureProcess() if figures else None  # started after tick 0: its imports overlap the run
     try:
         result = _start_and_run(scenario_file, set_, out_dir, (deploy, listen, connect), clock,
                                 (foxglove, foxglove_host), prestart and transport == "zenoh"
@@ -126,7 +126,8 @@ def run(
                                 deadline_s=deadline, limits=limits, fmu_log=fmu_log,
                                 strict=strict, lockstep_cpu=chain_setting,
                                 at_tick0=drawer.start if drawer is not None else None)
-        _finish_run(result, figures, mcap, drawer)
+        with _sigterm_interrupts():  # a SIGTERM while drawing ends the drawing process too
+            _finish_run(result, figures, mcap, drawer)
     finally:
         if drawer is not None:
             drawer.close()
@@ -225,8 +226,8 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
         endpoints: `--deploy` file, `--listen` and `--connect` values.
         clock: the cosim.engine.startup.StartupClock of the command (marks "scenario_loaded").
         foxglove: `--foxglove` port (None: no live server) and `--foxglove-host`.
-        at_tick0: called once everything is hosted, just before the master starts (after
-            a Ctrl-C that a library swallowed is raised): the start-up has the CPUs to itself.
+        at_tick0: called once tick 0 is done (`run_scenario(at_tick0=)`): the start-up
+            has had the CPUs to itself.
         run_options: passed on to `cosim.execution.run.run_scenario`.
     Returns:
         The cosim.execution.run.RunResult.
@@ -249,7 +250,7 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
         result = run_scenario(loaded, folder, progress=sys.stdout.isatty(), deploy=settings,
                               clock=clock, on_live=_print_live, on_folder=_print_folder,
                               observers=observers, on_warning=print_warning,
-                              before_tick0=_then(interrupts.raise_if_swallowed, at_tick0),
+                              before_tick0=interrupts.raise_if_swallowed, at_tick0=at_tick0,
                               runs_in_process=1 if interrupts.is_cosim_command() else None, **run_options)
     result.mcap = loaded.record.mcap
     return result
@@ -258,17 +259,6 @@ def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path]
 def _print_folder(folder: Path) -> None:
     """Tell the user where the run is written (called once the folder exists)."""
     print(f"run folder: {folder}", flush=True)
-
-
-def _then(first: Callable[[], None], second: Optional[Callable[[], None]]) -> Callable[[], None]:
-    """`first`, then `second` when given."""
-    if second is None:
-        return first
-
-    def both() -> None:
-        first()
-        second()
-    return both
 
 
 def _finish_run(result: Any, figures: bool, mcap: bool = False, drawer: Any = None) -> None:

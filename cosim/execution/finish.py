@@ -26,8 +26,8 @@ def analyse_run_folder(result: Any, figures: bool, drawer: Any = None) -> list[s
         result: a cosim.execution.run.RunResult (its metrics are refreshed from metrics.json).
         figures: draw the PNG figures too.
         drawer: a `cosim.execution.figure_process.FigureProcess` started with the run,
-            which draws them (asked before the metrics are written, so both go on at
-            once); None or not started: drawn in this process.
+            which draws them (handed the run before the metrics are written, so both go
+            on at once); None, or one that cannot take the run: drawn in this process.
     """
     from cosim.analysis.metrics import write_metrics
     from cosim.analysis.rundata import recorded_run
@@ -37,19 +37,17 @@ def analyse_run_folder(result: Any, figures: bool, drawer: Any = None) -> list[s
         run = recorded_run(result.out_dir, full_signals)
     except Exception as exc:  # analysis is best effort after a run
         return [f"metrics not computed: {exc}"] + ([f"figures not drawn: {exc}"] if figures else [])
-    drawer = drawer if drawer is not None and drawer.started else None
-    if figures and drawer is not None:
-        drawer.send(result.out_dir, full_signals)
+    handed = figures and drawer is not None and drawer.take(result.out_dir, full_signals)
     notes: list[str] = []
     try:
         write_metrics(result.out_dir, run=run)
         result.metrics = json.loads((result.out_dir / "metrics.json").read_text())
     except Exception as exc:
         notes.append(f"metrics not computed: {exc}")
-    drawn = drawer.notes() if figures and drawer is not None else None
+    drawn = drawer.notes() if handed else None
     if drawn is not None:
         notes += drawn
-    elif figures:  # no process, or one that could not run: drawn here
+    elif figures:  # no process, or one that could not draw: drawn here
         try:
             from cosim.figures.layouts import draw_figures
 

@@ -16,6 +16,7 @@ then overlaps the master's (see `run_scenario`).
 from __future__ import annotations
 
 import contextlib
+import operator
 import dataclasses
 import time
 import uuid
@@ -89,6 +90,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  fmu_log: bool = False, strict: bool = False,
                  on_warning: Callable[[str], None] | None = None,
                  before_tick0: Callable[[], None] | None = None,
+                 at_tick0: Callable[[], None] | None = None,
                  lockstep_cpu: str | int = "auto", runs_in_process: int | None = None) -> RunResult:
     """Run a scenario and write its run folder.
 
@@ -124,6 +126,9 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         on_warning: prints one interface-gap warning (once each, before tick 0).
         before_tick0: called once everything is hosted, just before the master starts
             (`cosim run` raises there a Ctrl-C that a library swallowed during start-up).
+        at_tick0: called once tick 0 is done, in the loop's thread, pinned when the chain
+            is (`cosim run` starts its figure's process there: a process started there is
+            given the other CPUs with `cosim.engine.one_cpu.release`).
         lockstep_cpu: "auto", "off" or a CPU number: from tick 0, the one CPU of the master
             and of the processes it started, when there are any (`cosim.engine.one_cpu`);
             the manifest's `lockstep_cpu` says which CPU, null for none.
@@ -141,9 +146,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         UserError for anything wrong before tick 0 (scenario, FMU, wiring).
     """
     check_run_options(transport, realtime)
-    if runs_in_process is not None and (isinstance(runs_in_process, bool)
-                                        or not isinstance(runs_in_process, int) or runs_in_process < 1):
-        raise UserError(f"runs_in_process must be a whole number from 1 up, or None; got {runs_in_process!r}")
+    runs_in_process = _count_of_runs(runs_in_process)
     one_cpu.check_setting(lockstep_cpu, "lockstep_cpu")
     limits = limits or RunLimits()
     check_ticks(scenario, limits)  # before the run folder: a refused run leaves nothing
@@ -177,7 +180,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                                    placement, deploy, limits)
             options = _Options(fmu_hosting.start_time(scenario, all_fmus),
                                fmu_hosting.deadlines(scenario, prepared.names, deadline_s),
-                               fmu_log, page, tuple(observers), chain, runs_in_process)
+                               fmu_log, page, tuple(observers), chain, runs_in_process, at_tick0)
             hosted = _host_components(prepared, remote, in_master, clock, out, options)
             _check_gaps(scenario, hosted, all_fmus, strict, on_warning)
             if before_tick0 is not None:
@@ -206,6 +209,7 @@ class _Options:
     observers: tuple[Any, ...] = ()  # more master observers, after the recorder
     chain: Any = None  # cosim.engine.one_cpu.PinnedChain: the CPU of the lockstep chain
     runs_in_process: int | None = None  # most runs this process hosts (see run_scenario)
+    at_tick0: Callable[[], None] | None = None  # see run_scenario
 
 
 def _make_run_folder(out: Path) -> Path:
@@ -216,6 +220,20 @@ def _make_run_folder(out: Path) -> Path:
         raise UserError(f"cannot create the run folder {str(out)!r}: "
                         f"{exc.strerror or exc}") from None
     return out
+
+
+def _count_of_runs(runs: Any) -> int | None:
+    """`runs_in_process` as an int (a numpy integer too), None kept; UserError for anything
+    but a whole number from 1 up (a bool is not a count)."""
+    if runs is None:
+        return None
+    try:
+        count = operator.index(runs) if not isinstance(runs, bool) else 0
+    except TypeError:
+        count = 0
+    if count < 1:
+        raise UserError(f"runs_in_process must be a whole number from 1 up, or None; got {runs!r}")
+    return count
 
 
 def check_run_options(transport: str, realtime: float | None) -> None:
@@ -434,6 +452,8 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
     def tick0_done() -> None:
         clock.mark("tick0")
         loop_started.append(time.perf_counter())
+        if options.at_tick0 is not None:  # counted in the loop's time
+            options.at_tick0()
 
     try:
         master.run(after_initialize=tick0_done)

@@ -1,32 +1,31 @@
 """The process that draws a run's figure while the run is still going: the child side.
 
-`cosim run` starts it with the run (`cosim.execution.figure_process`): it imports
-matplotlib and the layouts and draws a small figure once (fonts, caches) while the
-run goes, then waits. When the run has ended, one request comes on stdin (read by a
-thread, so the run's side never waits on the warm-up): a JSON line, then the
-recorder's rows as raw float64 bytes (`columns` null: signals.csv is read instead):
+`cosim run` starts it once tick 0 is done (`cosim.execution.figure_process`): it
+imports matplotlib and the layouts and draws a small figure once (fonts, caches)
+while the run goes, then waits for one request on stdin, a JSON line:
 
-    {"folder": RUN_FOLDER, "columns": [NAME, ...], "rows": N}\\n<N x len(columns) float64>
+    {"folder": RUN_FOLDER, "columns_bytes": C, "rows": N}
 
-It answers one JSON line per figure on stdout, `{"figure": PATH}`, or one
-`{"error": TEXT}` when the figure cannot be drawn, then exits. End of input
-before a request (the run failed, the master died) ends it quietly.
+The recorder's rows are in the memory file inherited as `--rows-fd FD`: the column
+names as a JSON list in its first C bytes (C a multiple of 8), then N rows of
+float64, one value per column. `columns_bytes` null: the run's signals.csv is read
+instead. It answers one JSON line per figure on stdout, `{"figure": PATH}`, or one
+`{"error": TEXT}` when the figure cannot be drawn, then exits. End of input before
+a request (the command ended without asking) ends it quietly.
 
-    python -m cosim.figures.drawing_process
+    python -m cosim.figures.drawing_process --rows-fd FD
 """
 
 from __future__ import annotations
 
+import argparse
 import io
 import json
-import os
+import mmap
 import sys
-import threading
-from typing import Any, BinaryIO
+from typing import Any
 
 import numpy as np
-
-FLOAT_BYTES = 8
 
 
 def warm_up() -> None:
@@ -44,29 +43,24 @@ def warm_up() -> None:
     FigureCanvasAgg(fig).print_png(io.BytesIO())
 
 
-def read_request(stream: BinaryIO) -> tuple[str, tuple[list[str], np.ndarray] | None] | None:
-    """The run folder and its rows (columns, values; None: read signals.csv), or None
-    at end of input.
+def read_request(line: bytes, rows_fd: int) -> tuple[str, tuple[list[str], np.ndarray] | None]:
+    """The run folder and its rows (columns, values, read-only; None: read signals.csv).
 
     Raises:
-        ValueError: a malformed header or fewer bytes than it announced.
+        ValueError, KeyError, TypeError: a malformed request, or a memory file that
+            holds less than it announces.
     """
-    line = stream.readline()
-    if not line:
-        return None
     header = json.loads(line)
-    if header["columns"] is None:
-        return str(header["folder"]), None
-    columns, rows = list(header["columns"]), int(header["rows"])
-    values = np.empty((rows, len(columns)), dtype=np.float64)
-    view = memoryview(values.reshape(-1).view(np.uint8))
-    got = 0
-    while got < len(view):
-        n = stream.readinto(view[got:])
-        if not n:
-            raise ValueError(f"the rows ended after {got} of {len(view)} bytes")
-        got += n
-    return str(header["folder"]), (columns, values)
+    folder, names_bytes = str(header["folder"]), header["columns_bytes"]
+    if names_bytes is None:
+        return folder, None
+    held = mmap.mmap(rows_fd, 0, access=mmap.ACCESS_READ)
+    columns = json.loads(held[:int(names_bytes)])
+    count = int(header["rows"]) * len(columns)
+    if len(held) < names_bytes + 8 * count:
+        raise ValueError(f"the rows file holds {len(held)} bytes, not {names_bytes + 8 * count}")
+    values = np.frombuffer(held, dtype=np.float64, count=count, offset=names_bytes)
+    return folder, (list(columns), values.reshape(int(header["rows"]), len(columns)))
 
 
 def answer(message: dict[str, Any]) -> None:
@@ -75,39 +69,24 @@ def answer(message: dict[str, Any]) -> None:
     sys.stdout.flush()
 
 
-class _Reader(threading.Thread):
-    """Reads the request while the main thread warms up, so the run's side never waits
-    on a full pipe; at end of input before a request it ends the process."""
-
-    def __init__(self) -> None:
-        super().__init__(name="request", daemon=True)
-        self.request: Any = None
-        self.problem: str | None = None
-
-    def run(self) -> None:
-        try:
-            self.request = read_request(sys.stdin.buffer)
-        except (ValueError, KeyError, TypeError) as exc:
-            self.problem = f"bad request from the run: {exc}"
-            return
-        if self.request is None:  # the run ended without asking: leave, mid-import or not
-            os._exit(0)
-
-
-def main() -> int:
-    """Warm up while the request comes in, then draw and answer; the exit status is 0
-    unless the request was malformed."""
-    reader = _Reader()
-    reader.start()
+def main(argv: list[str] | None = None) -> int:
+    """Warm up, wait for the request, draw, answer; the exit status is 0 unless the
+    request was malformed."""
+    parser = argparse.ArgumentParser(prog="python -m cosim.figures.drawing_process")
+    parser.add_argument("--rows-fd", type=int, required=True)
+    args = parser.parse_args(argv)
     try:
         warm_up()
     except Exception:  # noqa: BLE001  the figure itself, drawn below, says what is wrong
         pass
-    reader.join()
-    if reader.problem is not None:
-        answer({"error": reader.problem})
+    line = sys.stdin.buffer.readline()
+    if not line:
+        return 0
+    try:
+        folder, full_signals = read_request(line, args.rows_fd)
+    except (ValueError, KeyError, TypeError, OSError) as exc:
+        answer({"error": f"bad request from the run: {exc}"})
         return 1
-    folder, full_signals = reader.request
     try:
         from cosim.analysis.rundata import recorded_run
         from cosim.figures.layouts import draw_figures
