@@ -7,6 +7,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 import cosim
@@ -64,14 +65,15 @@ def test_the_cosim_run_command_tells_its_own_components(tmp_path):
 
 
 @pytest.mark.integration
-def test_a_session_told_how_many_runs_its_process_hosts_tells_its_components(tmp_path):
+@pytest.mark.parametrize("runs", [3, np.int64(3)])  # a sweep's samples may come from numpy
+def test_a_session_told_how_many_runs_its_process_hosts_tells_its_components(tmp_path, runs):
     from cosim.execution.run import run_scenario
     from cosim.scenario.loader import load_scenario
 
     scenario = tmp_path / "steps_seen.yaml"
     scenario.write_text(SCENARIO)
     result = run_scenario(load_scenario(scenario), out_dir=tmp_path / "run", transport="inproc",
-                          progress=False, runs_in_process=3)
+                          progress=False, runs_in_process=runs)
     assert result.status == "ok"
     assert set(result.full_signals[1][:, result.full_signals[0].index("seen.steps")]) == {150.0}
 

@@ -237,6 +237,14 @@ def test_sweep_histogram_panels_and_their_labels_neither_overlap_nor_leave_the_f
     _assert_inside_and_apart(fig, boxes, panels)
 
 
+def test_a_title_wraps_after_separators_and_cuts_a_part_longer_than_a_line():
+    from cosim.figures.sweep import wrapped_title
+
+    assert wrapped_title("controller.rms_yc (n=3)") == "controller.rms_yc (n=3)"
+    assert wrapped_title("planner.lateral_offset_max", width=12) == "planner.\nlateral_\noffset_max"
+    assert wrapped_title("x" * 30 + ".rms", width=12) == "x" * 12 + "\n" + "x" * 12 + "\n" + "x" * 6 + ".rms"
+
+
 @pytest.mark.parametrize("name_length", [12, 41, 64])
 def test_large_counts_and_long_metric_names_stay_inside_their_panels(name_length):
     fig, boxes = _sweep_figure_boxes(_many_samples(name_length))
