@@ -4,7 +4,8 @@ Drawing a run's figure after it costs matplotlib's import and its first-draw set
 (fonts, caches) on top of the drawing itself. `cosim run` therefore starts
 `python -m cosim.figures.drawing_process` (the child side, whose docstring has the
 protocol) once tick 0 is done, on the CPUs the lockstep chain leaves free
-(`cosim.engine.one_cpu.release`; with a single CPU it is not started): the child
+(`cosim.engine.one_cpu.release`; not with a single CPU, nor in a process that has
+matplotlib loaded already): the child
 does that set-up while the run goes, then waits. After the run `take` writes the
 recorder's rows into a memory file the child inherited (one copy, no pipe) and tells
 it the run folder, before this process writes the metrics, which then overlap the
@@ -54,11 +55,13 @@ class FigureProcess:
 
     def start(self) -> None:
         """Start the process now (once) on the CPUs beside the lockstep chain; nothing when
-        there is none (on one CPU its import would slow the run by what it saves) or when
-        it cannot start. Never raises: a figure must not fail the run."""
+        there is none (on one CPU its import would slow the run by what it saves), when
+        this process has matplotlib loaded already (drawing here then costs no import: a
+        Python session, the test suite) or when it cannot start. Never raises: a figure
+        must not fail the run."""
         from cosim.engine import one_cpu
 
-        if self._process is not None or not one_cpu.cpus_beside():
+        if self._process is not None or drawing_loaded_here() or not one_cpu.cpus_beside():
             return
         try:
             self._rows = _memory_file()
@@ -145,6 +148,11 @@ class FigureProcess:
                     stream.close()
                 except OSError:
                     pass
+
+
+def drawing_loaded_here() -> bool:
+    """Whether this process has imported matplotlib already."""
+    return "matplotlib" in sys.modules
 
 
 def _memory_file() -> IO[bytes]:

@@ -35,8 +35,10 @@ def short_run(tmp_path_factory):
 
 @pytest.fixture
 def two_cpus(monkeypatch):
-    """A CPU beside the chain's, whatever this machine has (the process starts only then)."""
+    """A CPU beside the chain's, whatever this machine has, and matplotlib not loaded here
+    as far as `start` can tell (the process starts only then)."""
     monkeypatch.setattr(one_cpu, "cpus_beside", lambda: {0})
+    monkeypatch.setattr(figure_process, "drawing_loaded_here", lambda: False)
 
 
 @pytest.fixture
@@ -109,6 +111,17 @@ def test_rows_above_the_limit_are_drawn_here(short_run, figure, two_cpus, monkey
 def test_with_one_cpu_there_is_no_drawing_process(short_run, figure, monkeypatch):
     # its import would take the run's own CPU for as long as it saves afterwards
     monkeypatch.setattr(one_cpu, "cpus_beside", lambda: set())
+    drawer = FigureProcess()
+    drawer.start()
+    assert drawer.pid is None
+    assert analyse_run_folder(short_run, figures=True, drawer=drawer) == [f"figure: {figure}"]
+
+
+def test_a_process_that_has_matplotlib_loaded_draws_itself(short_run, figure, monkeypatch):
+    import matplotlib  # noqa: F401  (loaded here, as in a Python session)
+
+    monkeypatch.setattr(one_cpu, "cpus_beside", lambda: {0})
+    assert figure_process.drawing_loaded_here()
     drawer = FigureProcess()
     drawer.start()
     assert drawer.pid is None
