@@ -96,7 +96,7 @@ def child(duration: float, transport: str, figures: bool) -> None:
         if figures and not any(note.startswith("figure: ") for note in notes):
             raise SystemExit(f"bench_memory: no figure: {notes}")
         probe.peaks["master (with metrics and figures)"] = peak_kib()
-        if drawer.started:
+        if drawer.pid is not None:
             probe.peaks["figure process (with metrics and figures)"] = drawer_peak.result()
         probe.peaks["ticks"] = result.ticks
     print(json.dumps(probe.peaks))
