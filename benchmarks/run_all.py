@@ -70,6 +70,7 @@ BENCHMARKS = (
               ("--seconds", "20", "--repeats", "5")),
     Benchmark("bench_startup", ("--repeat", "3", "--transports", "zenoh,inproc"),
               ("--repeat", "5"), run_all_rows.startup),
+    Benchmark("bench_figure", ("--repeat", "3"), ("--repeat", "5")),
     Benchmark("bench_foxglove", ("--duration", "10", "--repeats", "2"),
               ("--duration", "20", "--repeats", "3"), run_all_rows.foxglove),
     Benchmark("bench_sweep", ("--samples", "6", "--seconds", "10", "--repeats", "2"),
