@@ -126,14 +126,9 @@ class FigureProcess:
 
     def _child_errors(self) -> str:
         """The end of what the child wrote on stderr, stripped ('' for nothing)."""
-        if self._stderr is None:
-            return ""
-        try:
-            self._stderr.seek(0, os.SEEK_END)
-            self._stderr.seek(max(0, self._stderr.tell() - CHILD_ERRORS_SHOWN))
-            return self._stderr.read().decode(errors="replace").strip()
-        except (OSError, ValueError):
-            return ""
+        from cosim.transport.zenoh.processes import file_tail
+
+        return file_tail(self._stderr, CHILD_ERRORS_SHOWN) if self._stderr is not None else ""
 
     def close(self) -> None:
         """End the process if it is still there (never asked, or interrupted) and release

@@ -16,8 +16,8 @@ then overlaps the master's (see `run_scenario`).
 from __future__ import annotations
 
 import contextlib
-import operator
 import dataclasses
+import operator
 import time
 import uuid
 from collections.abc import Callable, Sequence

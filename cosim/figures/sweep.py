@@ -27,8 +27,8 @@ TITLE_CHARS = 36  # a title line that fits the narrowest panel (4 columns) at 9 
 
 
 def wrapped_title(name: str, width: int = TITLE_CHARS) -> str:
-    """`name` in lines of at most `width` characters, broken after its dots and
-    underscores (a metric name has no spaces); a part longer than a line is cut."""
+    """`name` in lines of at most `width` characters, broken after its dots, underscores
+    and spaces (the " (n=N)" a title ends with); a part longer than a line is cut."""
     parts = re.findall(r"[^._ ]*[._ ]|[^._ ]+$", name)
     lines = [""]
     for part in parts:

@@ -184,17 +184,22 @@ class ChildProcess:
 
     def log_tail(self) -> str:
         """The last lines the process printed (stdout and stderr), stripped."""
-        try:
-            self._log.seek(0, os.SEEK_END)
-            size = self._log.tell()
-            self._log.seek(max(0, size - TAIL_CHARS))
-            return self._log.read().decode(errors="replace").strip()
-        except (OSError, ValueError):
-            return ""
+        return file_tail(self._log, TAIL_CHARS)
 
     def close_log(self) -> None:
         """Release the log file."""
         self._log.close()
+
+
+def file_tail(log: Any, chars: int) -> str:
+    """The last `chars` bytes of an open binary file (a child's log), decoded and stripped;
+    '' when it cannot be read (closed, removed)."""
+    try:
+        log.seek(0, os.SEEK_END)
+        log.seek(max(0, log.tell() - chars))
+        return log.read().decode(errors="replace").strip()
+    except (OSError, ValueError):
+        return ""
 
 
 def process_stopped(pid: int) -> bool:
