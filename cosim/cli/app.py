@@ -24,6 +24,7 @@ import typer  # noqa: E402
 from cosim.cli import (analysis, distributed, fmus, foxglove, results, run, scenario,  # noqa: E402
                        ssp, watch)
 from cosim.cli.common import EXIT_USER_ERROR, user_error_exit  # noqa: E402
+from cosim import quick_exit  # noqa: E402
 from cosim.errors import UserError  # noqa: E402
 
 app = typer.Typer(add_completion=True, no_args_is_help=True,
@@ -83,9 +84,19 @@ def _is_number(text: str | None) -> bool:
 def main(argv: Sequence[str] | None = None) -> int:
     """Console-script entry point; returns the exit status.
 
+    In the `cosim` command's own process (not a test calling `main`) the process then
+    ends without the interpreter's teardown (`cosim.quick_exit`), with that status.
+
     Args:
         argv: arguments (default: sys.argv[1:]).
     """
+    if interrupts.is_cosim_command():
+        quick_exit.skip_teardown()
+    return quick_exit.exit_status(_command(argv))
+
+
+def _command(argv: Sequence[str] | None) -> int:
+    """Run the command line `argv`; its exit status."""
     args = normalize_realtime(sys.argv[1:] if argv is None else argv)
     if args[:1] != ["run"]:  # `run` keeps the quiet Ctrl-C until its own handling starts
         interrupts.restore()

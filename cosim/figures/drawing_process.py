@@ -99,4 +99,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from cosim import quick_exit
+
+    quick_exit.skip_teardown()  # the PNG is written and the answer flushed: 0.4 s saved
+    sys.exit(quick_exit.exit_status(main()))
