@@ -75,3 +75,13 @@ def test_cosim_command_status_and_output_kept():
                             capture_output=True, text=True, cwd=CHECKOUT_DIR, timeout=120)
     assert listed.returncode == 0
     assert "lane_change" in listed.stdout and "satory_nominal" in listed.stdout
+
+
+def test_the_cli_registers_no_atexit_callback_before_main_arms_it():
+    """`skip_teardown` runs last only if nothing registered before it: importing the CLI
+    must not (a callback registered then, such as logging's, would be skipped)."""
+    script = "import atexit\nimport cosim.cli.app\nprint(atexit._ncallbacks())\n"
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          cwd=CHECKOUT_DIR, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "0"
