@@ -93,6 +93,62 @@ def speed_anchor(repeats: int = 5) -> float:
     return best / ANCHOR_LOOPS * 1e9
 
 
+CEILING_LOOPS = 1_500_000  # iterations of the anchor's loop per process (about 0.1 s)
+
+_CEILING_CHILD = """
+import os, sys, time
+cpu = int(sys.argv[1])
+if cpu >= 0:
+    os.sched_setaffinity(0, {cpu})
+print("ready", flush=True)
+sys.stdin.readline()
+start = time.perf_counter()
+x, y = 0.5, 0.0
+for _ in range(int(sys.argv[2])):
+    y = y * 0.999 + x * x - 0.25
+print(time.perf_counter() - start, flush=True)
+"""
+
+
+def _loops_on(cpus: Sequence[int], loops: int) -> float:
+    """Wall seconds until every one of len(cpus) processes, each on its CPU (-1: anywhere),
+    has run `loops` iterations of the anchor's loop, all started at once."""
+    children = [subprocess.Popen([sys.executable, "-S", "-c", _CEILING_CHILD, str(cpu), str(loops)],
+                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+                for cpu in cpus]
+    try:
+        for child in children:
+            assert child.stdout is not None and child.stdout.readline().strip() == "ready"
+        for child in children:
+            assert child.stdin is not None
+            child.stdin.write("go\n")
+            child.stdin.flush()
+        return max(float(child.communicate()[0]) for child in children)
+    finally:
+        for child in children:
+            if child.poll() is None:
+                child.kill()
+                child.wait()
+
+
+def two_process_ceiling(rounds: int = 3, loops: int = CEILING_LOOPS) -> float:
+    """How much faster two CPU-bound processes get through twice the work than one does
+    the work alone: 2 x alone / together, medians over `rounds` alternating rounds.
+
+    Each process runs the speed anchor's pure-Python loop, the first on CPU 0 and the
+    second on CPU 1 as a sweep's workers are placed (anywhere when this platform cannot
+    pin). 2.0 on cores that share nothing; less where the two CPUs share a physical
+    core or the host's time: the most 2 sweep workers can scale here.
+    """
+    pinned = hasattr(os, "sched_setaffinity") and len(os.sched_getaffinity(0)) >= 2
+    cpus = [0, 1] if pinned else [-1, -1]
+    alone, together = [], []
+    for _ in range(rounds):
+        alone.append(_loops_on(cpus[:1], loops))
+        together.append(_loops_on(cpus, loops))
+    return 2.0 * statistics.median(alone) / statistics.median(together)
+
+
 def table_row(measure: str, figure: str, target: str, met: bool | None) -> dict[str, object]:
     """One row of the performance table (`benchmarks/run_all.py`): what, the figure, the target, met?"""
     return {"measure": measure, "figure": figure, "target": target, "met": met}
