@@ -13,9 +13,12 @@ from __future__ import annotations
 
 import sys
 
+from cosim import startup_gc
 from cosim.cli import interrupts
 
 interrupts.quiet_until_started(__name__)  # before typer and rich load (about 0.2 s)
+if interrupts.is_cosim_program(__name__):  # until the command is under way (tick 0 for `run`)
+    startup_gc.pause()
 
 from collections.abc import Sequence  # noqa: E402
 
@@ -99,7 +102,8 @@ def _command(argv: Sequence[str] | None) -> int:
     """Run the command line `argv`; its exit status."""
     args = normalize_realtime(sys.argv[1:] if argv is None else argv)
     if args[:1] != ["run"]:  # `run` keeps the quiet Ctrl-C until its own handling starts
-        interrupts.restore()
+        interrupts.restore()  # and collection paused until tick 0
+        startup_gc.resume()
     command = typer.main.get_command(app)
     try:
         result = command.main(args=args, prog_name="cosim", standalone_mode=False)

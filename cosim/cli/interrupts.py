@@ -19,7 +19,7 @@ def _early_interrupt(signum: int, frame: object) -> None:
     raise SystemExit(1)
 
 
-def _is_cosim_program(module_name: str) -> bool:
+def is_cosim_program(module_name: str) -> bool:
     """True when this process is the `cosim` command (not a test importing the CLI)."""
     program = sys.argv[0].replace("\\", "/").rsplit("/", 1)[-1] if sys.argv else ""
     return program in ("cosim", "app.py") or module_name == "__main__"
@@ -29,7 +29,7 @@ def is_cosim_command() -> bool:
     """True when this process is the `cosim` command itself (not a test calling `main`)."""
     main = sys.modules.get("__main__")
     spec = getattr(main, "__spec__", None)
-    return _is_cosim_program("") or getattr(spec, "name", None) == "cosim.cli.app"
+    return is_cosim_program("") or getattr(spec, "name", None) == "cosim.cli.app"
 
 
 def quiet_until_started(module_name: str) -> None:
@@ -38,7 +38,7 @@ def quiet_until_started(module_name: str) -> None:
     Args:
         module_name: `__name__` of the entry module ("__main__" under `python -m`).
     """
-    if _is_cosim_program(module_name) and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    if is_cosim_program(module_name) and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         try:
             signal.signal(signal.SIGINT, _early_interrupt)
         except ValueError:  # not the main thread: leave signals alone

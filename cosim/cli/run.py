@@ -8,6 +8,7 @@ it has (see `cosim.execution.run`).
 from __future__ import annotations
 
 import contextlib
+import functools
 import sys
 import datetime
 import signal
@@ -18,6 +19,7 @@ from typing import Any, Optional
 
 import typer
 
+from cosim import startup_gc
 from cosim.cli import interrupts
 from cosim.cli.common import STRICT_HELP, print_warning, user_error_exit
 from cosim.engine import one_cpu
@@ -125,12 +127,21 @@ def run(
                                 transport=transport, realtime=realtime, place=place,
                                 deadline_s=deadline, limits=limits, fmu_log=fmu_log,
                                 strict=strict, lockstep_cpu=chain_setting,
-                                at_tick0=drawer.start if drawer is not None else None)
+                                at_tick0=functools.partial(_tick0_done, drawer))
         with _sigterm_interrupts():  # a SIGTERM while drawing ends the drawing process too
             _finish_run(result, figures, mcap, drawer)
     finally:
+        startup_gc.resume()  # a run that ended before tick 0
         if drawer is not None:
             drawer.close()
+
+
+def _tick0_done(drawer: Any) -> None:
+    """Once tick 0 is done: collect again, the start-up's objects frozen
+    (cosim.startup_gc), and start the drawing process."""
+    startup_gc.resume(freeze=True)
+    if drawer is not None:
+        drawer.start()
 
 
 def _start_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path],

@@ -31,6 +31,7 @@ salvage, loaded only when needed.
 
 from __future__ import annotations
 
+import gc
 import json
 import mmap
 import os
@@ -107,6 +108,7 @@ def fork_supervisor() -> int | None:
         os.setpgid(0, 0)  # a terminal's Ctrl-C reaches the supervisor, which forwards it once
         _page = page
         return None
+    gc.enable()  # it lasts as long as the run, whatever the command chose for its start-up
     try:
         return Supervisor(pid, page).run()
     finally:

@@ -11,7 +11,8 @@ starts it while it loads the scenario). For manual use, `--run-id`,
 plain session, without a credential).
 
 The process joins the master's endpoint as a peer, declares a liveliness
-token, builds the component, then answers requests in a blocking receive
+token, builds the component (with Python's collector paused until then:
+cosim.startup_gc), then answers requests in a blocking receive
 loop in the main thread: HELLO (its port declarations, and whether its class
 hears `use_outputs`), USE (the outputs the run reads, before START), START,
 STEP and STOP.
@@ -37,6 +38,7 @@ from typing import Any
 
 import zenoh
 
+from cosim import startup_gc
 from cosim.component import Component, values_step
 from cosim.errors import UserError
 from cosim.transport.inproc import (ParameterProblem, PythonComponentLaunch, construct_component,
@@ -278,6 +280,7 @@ def serve(args: argparse.Namespace) -> int:
         # constructor runs are not delivered, so they cannot fill the request queue.
         server = _Server(launch, ages, greeted)
         ages["built"] = process_age_s()
+        startup_gc.resume(freeze=True)  # built: what it made lives as long as the process
         requests = session.declare_subscriber(config.request_key(args.run_id, args.name))
         publisher = session.declare_publisher(config.reply_key(args.run_id, args.name),
                                               express=True)
@@ -298,10 +301,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         argv: command-line arguments without the program name (None: sys.argv).
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    startup_gc.pause()  # until the component is built (serve), or the process ends
     if os.getcwd() not in sys.path:
         sys.path.insert(0, os.getcwd())
     args = parse_args(argv)
-    return serve(args)
+    try:
+        return serve(args)
+    finally:
+        startup_gc.resume()
 
 
 if __name__ == "__main__":

@@ -1,0 +1,86 @@
+"""cosim.startup_gc: collection held back while the command (or a component process)
+starts, resumed (and the start-up frozen) at tick 0; nothing changes in a process that
+only imports the CLI."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+from cosim.resources import CHECKOUT_DIR
+
+
+def run_python(script: str, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(script), *args],
+                          capture_output=True, text=True, cwd=CHECKOUT_DIR, timeout=120)
+
+
+def test_paused_then_resumed_with_a_freeze():
+    done = run_python("""
+        import gc
+        from cosim import startup_gc
+        startup_gc.pause()
+        print(gc.isenabled(), startup_gc.paused())
+        startup_gc.resume(freeze=True)
+        print(gc.isenabled(), gc.get_freeze_count() > 0, startup_gc.paused())
+        startup_gc.resume(freeze=True)  # once only
+        print(gc.isenabled())
+    """)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split("\n")[:3] == ["False True", "True True False", "True"]
+
+
+def test_nothing_paused_outside_the_command():
+    done = run_python("""
+        import gc, sys
+        sys.argv[0] = "pytest"
+        import cosim.cli.app
+        from cosim import startup_gc
+        print(gc.isenabled(), startup_gc.paused())
+    """)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "True False"
+
+
+def test_run_collects_again_from_tick0_and_other_commands_at_once(tmp_path: Path):
+    """The real command line: paused from the CLI's import to tick 0 (seen by the tick-0
+    hook), collecting and frozen after; `validate` collects as soon as it starts."""
+    seen = tmp_path / "seen.json"
+    done = run_python("""
+        import gc, json, sys
+        sys.argv[0] = "/usr/bin/cosim"
+        import cosim.cli.app as app
+        import cosim.cli.run as run
+        seen = {"at import": gc.isenabled()}
+        hook = run._tick0_done
+        def spy(drawer):
+            seen["before tick-0 hook"] = gc.isenabled()
+            hook(drawer)
+            seen["after tick-0 hook"] = gc.isenabled()
+            seen["frozen"] = gc.get_freeze_count() > 0
+        run._tick0_done = spy
+        seen["status"] = app._command(sys.argv[2:])
+        seen["collecting at the end"] = gc.isenabled()
+        with open(sys.argv[1], "a") as out:  # the master and its supervisor (forked) each write
+            out.write(json.dumps(seen) + "\\n")
+    """, str(seen), "run", "lane_change", "--transport", "inproc", "--set", "duration=1",
+                      "--no-figures", "--out", str(tmp_path / "run"))
+    assert done.returncode == 0, done.stderr
+    master, supervisor = sorted((json.loads(line) for line in seen.read_text().splitlines()), key=len,
+                                reverse=True)
+    assert master == {"at import": False, "before tick-0 hook": False, "after tick-0 hook": True,
+                      "frozen": True, "status": 0, "collecting at the end": True}
+    assert supervisor == {"at import": False, "status": 0, "collecting at the end": True}
+    validated = run_python("""
+        import gc, sys
+        sys.argv[0] = "/usr/bin/cosim"
+        import cosim.cli.app as app
+        before = gc.isenabled()
+        status = app._command(["validate", "scenarios/lane_change.yaml"])
+        print(before, gc.isenabled(), status)
+    """)
+    assert validated.returncode == 0, validated.stderr
+    assert validated.stdout.strip().splitlines()[-1] == "False True 0"
