@@ -21,6 +21,10 @@ forked: its cost at start-up is the difference to "zenoh").
 after the scenario is loaded instead of while it loads), for comparison.
 "zenoh-anycpu" runs `cosim run --lockstep-cpu off` (the processes where the OS
 puts them, instead of on the master's CPU).
+"zenoh-compiled" runs it with COSIM_JIT=on: the controller process loads numba's
+compiled projection and step, as it does for a run of 15,000 steps or more (the
+README's first command, satory_nominal's 27,500), which the ten ticks here would
+otherwise run interpreted (`controllers.jit.SHORT_RUN_STEPS`).
 """
 
 from __future__ import annotations
@@ -52,8 +56,10 @@ def run_once(scenario: Path, transport: str, out: Path, duration: float,
              env: dict[str, str]) -> dict:
     """One `cosim run`; returns its manifest (raises if the run failed)."""
     variants = {"noprestart": ["--no-prestart"], "nosupervise": ["--no-supervise"],
-                "anycpu": ["--lockstep-cpu", "off"]}
+                "anycpu": ["--lockstep-cpu", "off"], "compiled": []}
     extra = [arg for v in transport.split("-")[1:] for arg in variants[v]]
+    if "compiled" in transport.split("-")[1:]:
+        env = {**env, "COSIM_JIT": "on"}
     cmd = [*cosim_command(), "run", str(scenario), "--out", str(out), "--no-figures",
            "--transport", transport.split("-")[0], "--set", f"duration={duration!r}", *extra]
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env)

@@ -68,7 +68,7 @@ BENCHMARKS = (
               ("--seconds", "20", "--repeats", "7")),
     Benchmark("bench_vs_mosaik", ("--seconds", "10", "--repeats", "3"),
               ("--seconds", "20", "--repeats", "5")),
-    Benchmark("bench_startup", ("--repeat", "3", "--transports", "zenoh,inproc"),
+    Benchmark("bench_startup", ("--repeat", "3", "--transports", "zenoh,inproc,zenoh-compiled"),
               ("--repeat", "5"), run_all_rows.startup),
     Benchmark("bench_figure", ("--repeat", "3"), ("--repeat", "5")),
     Benchmark("bench_foxglove", ("--duration", "10", "--repeats", "2"),

@@ -163,3 +163,20 @@ def test_fmu_step_host_row_without_the_physics_table():
     shim_only = FMU_STEP_OUTPUT.split("FMU                           per-call")[1]
     (host,) = run_all_rows.fmu_step(shim_only)
     assert host["figure"] == "10.59 vs 6.92 µs (1.53x), outputs bit-identical"
+
+
+STARTUP_OUTPUT = (
+    "transport           median      min      max   target 1.0 s\n"
+    "zenoh                0.812    0.660    0.901   met\n"
+    "inproc               0.580    0.570    0.600   met\n"
+    "zenoh-compiled       1.104    0.998    1.250   NOT met\n")
+
+
+def test_startup_rows_one_per_transport_the_compiled_start_apart():
+    zenoh, inproc, compiled = run_all_rows.startup(STARTUP_OUTPUT)
+    assert zenoh["measure"] == "`cosim run` to tick 0, zenoh (lane_change)"
+    assert zenoh["figure"] == "median 0.81 s (min 0.66)" and zenoh["met"] is True
+    assert inproc["figure"] == "median 0.58 s (min 0.57)" and inproc["met"] is True
+    assert compiled["measure"].startswith("`cosim run` to tick 0, zenoh, controller compiled")
+    assert compiled["figure"] == "median 1.10 s (min 1.00)" and compiled["met"] is False
+    assert run_all_rows.startup(STARTUP_OUTPUT.replace("zenoh-compiled", "zenoh-other")) == [zenoh, inproc]
