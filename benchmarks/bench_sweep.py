@@ -53,6 +53,7 @@ from benchmarks.common import emit_results, load_average, table_row, two_process
 SCENARIO = ROOT / "scenarios" / "satory_nominal.yaml"
 VARY = "components.controller.parameters.ke=3.0:5.0"
 TARGET = 1.8
+CEILING_ROUNDS = 3  # alone / together pairs per measurement of the machine's ceiling (~1.5 s)
 
 
 def _cpu_seconds() -> float:
@@ -133,14 +134,14 @@ def main() -> None:
         busy: dict[tuple[int, int], list[float]] = {key: [] for key in rates}
         ceilings: list[float] = []  # the machine's own 2-process scaling, around every round
         for round_ in range(args.repeats):
-            ceilings.append(two_process_ceiling(rounds=1))
+            ceilings.append(two_process_ceiling(rounds=CEILING_ROUNDS))
             for samples in workloads:
                 for n in args.workers:
                     rate, cores = timed_sweep(clusters[n].scheduler_address, samples, args.seconds,
                                               args.transport, seed=round_)
                     rates[samples, n].append(rate)
                     busy[samples, n].append(cores)
-        ceilings.append(two_process_ceiling(rounds=1))
+        ceilings.append(two_process_ceiling(rounds=CEILING_ROUNDS))
     finally:
         for cluster in clusters.values():
             cluster.close()

@@ -138,7 +138,9 @@ def two_process_ceiling(rounds: int = 3, loops: int = CEILING_LOOPS) -> float:
     Each process runs the speed anchor's pure-Python loop, the first on CPU 0 and the
     second on CPU 1 as a sweep's workers are placed (anywhere when this platform cannot
     pin). 2.0 on cores that share nothing; less where the two CPUs share a physical
-    core or the host's time: the most 2 sweep workers can scale here.
+    core or the host's time: the most 2 sweep workers can scale here. A single round
+    of 0.1 s loops can come out above 2 when the lone process met a slow moment: use
+    several.
     """
     pinned = hasattr(os, "sched_setaffinity") and len(os.sched_getaffinity(0)) >= 2
     cpus = [0, 1] if pinned else [-1, -1]
