@@ -111,18 +111,21 @@ print(time.perf_counter() - start, flush=True)
 
 
 def _loops_on(cpus: Sequence[int], loops: int) -> float:
-    """Wall seconds until every one of len(cpus) processes, each on its CPU (-1: anywhere),
-    has run `loops` iterations of the anchor's loop, all started at once."""
+    """The longest of len(cpus) processes' own times (wall seconds, from their start signal)
+    for `loops` iterations of the anchor's loop, each on its CPU (-1: anywhere), all
+    signalled at once."""
     children = [subprocess.Popen([sys.executable, "-S", "-c", _CEILING_CHILD, str(cpu), str(loops)],
                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
                 for cpu in cpus]
     try:
+        for child, cpu in zip(children, cpus):
+            if child.stdout is None or child.stdout.readline().strip() != "ready":
+                raise RuntimeError(f"the ceiling's process for CPU {cpu} did not start "
+                                   f"(exit status {child.wait()})")
         for child in children:
-            assert child.stdout is not None and child.stdout.readline().strip() == "ready"
-        for child in children:
-            assert child.stdin is not None
-            child.stdin.write("go\n")
-            child.stdin.flush()
+            if child.stdin is not None:
+                child.stdin.write("go\n")
+                child.stdin.flush()
         return max(float(child.communicate()[0]) for child in children)
     finally:
         for child in children:
@@ -135,15 +138,16 @@ def two_process_ceiling(rounds: int = 3, loops: int = CEILING_LOOPS) -> float:
     """How much faster two CPU-bound processes get through twice the work than one does
     the work alone: 2 x alone / together, medians over `rounds` alternating rounds.
 
-    Each process runs the speed anchor's pure-Python loop, the first on CPU 0 and the
-    second on CPU 1 as a sweep's workers are placed (anywhere when this platform cannot
-    pin). 2.0 on cores that share nothing; less where the two CPUs share a physical
+    Each process runs the speed anchor's pure-Python loop, the first on the first CPU
+    this process may use and the second on the second, as a sweep's workers are placed
+    (`cosim.execution.worker_cpus`; anywhere when this platform cannot pin; the lone
+    process is pinned too, where a 1-worker sweep is not). 2.0 on cores that share nothing; less where the two CPUs share a physical
     core or the host's time: the most 2 sweep workers can scale here. A single round
     of 0.1 s loops can come out above 2 when the lone process met a slow moment: use
     several.
     """
-    pinned = hasattr(os, "sched_setaffinity") and len(os.sched_getaffinity(0)) >= 2
-    cpus = [0, 1] if pinned else [-1, -1]
+    allowed = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+    cpus = allowed[:2] if len(allowed) >= 2 else [-1, -1]
     alone, together = [], []
     for _ in range(rounds):
         alone.append(_loops_on(cpus[:1], loops))

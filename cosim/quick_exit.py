@@ -13,7 +13,8 @@ and the interpreter has joined every non-daemon thread before it runs any. The
 callback flushes Python's and C's standard streams (an FMU may have written
 with printf) and ends the process with `os._exit` and the status given to
 `exit_status` (1 until then: a process that dies of an uncaught exception
-exits with 1, as Python's own exit does). What the teardown would still do is
+exits with 1, as Python's own exit does; an uncaught KeyboardInterrupt too, where
+Python would end by SIGINT). What the teardown would still do is
 calling `__del__` of objects alive at exit; a process that arms this closes
 its files and sessions itself before it returns.
 """
@@ -30,10 +31,14 @@ _armed = False
 
 
 def skip_teardown() -> None:
-    """End this process without the teardown, after every atexit callback (once; call it
-    before anything else registers one)."""
+    """End this process without the teardown, after every atexit callback (once).
+
+    Nothing when a callback is registered already (a sitecustomize, a coverage hook, a
+    host script): registered before this one, it would run after it, that is never.
+    """
     global _armed
-    if not _armed:
+    count = getattr(atexit, "_ncallbacks", None)  # CPython's; without it, assume none
+    if not _armed and not (count is not None and count() > 0):
         atexit.register(_end)
         _armed = True
 
@@ -54,6 +59,6 @@ def _end() -> None:
             pass
     try:
         ctypes.CDLL(None).fflush(None)  # every C stdio stream
-    except (OSError, AttributeError):
+    except Exception:  # noqa: BLE001  no C library to flush (not POSIX): os._exit anyway
         pass
     os._exit(_status)

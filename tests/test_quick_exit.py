@@ -85,3 +85,16 @@ def test_the_cli_registers_no_atexit_callback_before_main_arms_it():
                           cwd=CHECKOUT_DIR, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "0"
+
+
+def test_not_armed_after_an_earlier_callback():
+    """A callback registered before (a sitecustomize, a coverage hook) would run after ours,
+    that is never: the normal teardown then, and that callback runs."""
+    script = ("import atexit, sys\natexit.register(lambda: print('earlier callback ran'))\n"
+              "from cosim import quick_exit\nquick_exit.skip_teardown()\n"
+              "class Held:\n    def __del__(self):\n        print('teardown ran')\n"
+              "held = Held()\nsys.exit(quick_exit.exit_status(4))\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          cwd=CHECKOUT_DIR, timeout=60)
+    assert done.returncode == 4
+    assert "earlier callback ran" in done.stdout and "teardown ran" in done.stdout

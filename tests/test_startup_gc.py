@@ -84,3 +84,60 @@ def test_run_collects_again_from_tick0_and_other_commands_at_once(tmp_path: Path
     """)
     assert validated.returncode == 0, validated.stderr
     assert validated.stdout.strip().splitlines()[-1] == "False True 0"
+
+
+def test_a_child_spawned_from_the_command_script_collects(tmp_path: Path):
+    """multiprocessing's spawn (a sweep's Dask workers) re-runs the parent's script as
+    `__mp_main__`: the CLI it imports must not pause collection nor take Ctrl-C there."""
+    script = tmp_path / "cosim"  # named like the console script
+    script.write_text(textwrap.dedent("""
+        import gc, multiprocessing, signal, sys
+        from cosim.cli.app import main
+
+        def child(out):
+            with open(out, "w") as f:
+                f.write(f"{gc.isenabled()} {signal.getsignal(signal.SIGINT) is signal.default_int_handler}")
+
+        if __name__ == "__main__":
+            print(gc.isenabled(), flush=True)  # the command itself: paused
+            process = multiprocessing.get_context("spawn").Process(target=child, args=(sys.argv[1],))
+            process.start()
+            process.join()
+            sys.exit(process.exitcode)
+    """))
+    out = tmp_path / "child.txt"
+    done = subprocess.run([sys.executable, str(script), str(out)], capture_output=True, text=True,
+                          cwd=CHECKOUT_DIR, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"
+    assert out.read_text() == "True True"
+
+
+def test_a_large_start_up_is_collected_before_the_freeze():
+    """Above COLLECT_FIRST_ABOVE objects made since the pause, garbage is collected before the
+    freeze (numba compiling afresh leaves ~200,000 unreachable objects); below, it is frozen."""
+    done = run_python("""
+        import gc
+        from cosim import startup_gc
+
+        def cycles(n):
+            for _ in range(n):
+                a = []
+                a.append(a)  # unreachable once the loop moves on, but only a collection frees it
+
+        startup_gc.pause()
+        cycles(startup_gc.COLLECT_FIRST_ABOVE + 50_000)
+        startup_gc.resume(freeze=True)
+        large = gc.get_freeze_count()
+        gc.unfreeze()
+        gc.collect()
+        startup_gc.pause()
+        cycles(20_000)
+        startup_gc.resume(freeze=True)
+        small = gc.get_freeze_count()
+        print(large, small)
+    """)
+    assert done.returncode == 0, done.stderr
+    large, small = map(int, done.stdout.split())
+    assert large < 100_000        # the 350,000 cycles were collected first
+    assert small >= 20_000        # a small start-up is frozen as it is, its garbage too

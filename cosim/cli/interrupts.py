@@ -20,9 +20,15 @@ def _early_interrupt(signum: int, frame: object) -> None:
 
 
 def is_cosim_program(module_name: str) -> bool:
-    """True when this process is the `cosim` command (not a test importing the CLI)."""
-    program = sys.argv[0].replace("\\", "/").rsplit("/", 1)[-1] if sys.argv else ""
-    return program in ("cosim", "app.py") or module_name == "__main__"
+    """True when this process is the `cosim` command: not a test importing the CLI, nor a
+    child that multiprocessing's spawn started from the command's script (a sweep's Dask
+    workers), which imports the CLI again as `__mp_main__` but never runs it."""
+    mp_main = sys.modules.get("__mp_main__")  # `import multiprocessing` aliases it to __main__;
+    if mp_main is not None and mp_main is not sys.modules.get("__main__"):  # a spawned child
+        return False                          # re-running the script gives it a module of its own
+    path = sys.argv[0].replace("\\", "/") if sys.argv else ""
+    return (path.rsplit("/", 1)[-1] == "cosim" or path.endswith("cosim/cli/app.py")
+            or module_name == "__main__")
 
 
 def is_cosim_command() -> bool:

@@ -25,13 +25,12 @@ Every `POLL_S` and on every signal the supervisor reads the breadcrumb:
   not return within `INTERRUPT_GRACE_S` (native code ignores signals), it is
   killed and the run folder completed as interrupted.
 
-Otherwise it exits with the master's status. Standard library only, plus the
-salvage, loaded only when needed.
+Otherwise it exits with the master's status. Standard library only (cosim.startup_gc
+is too), plus the salvage, loaded only when needed.
 """
 
 from __future__ import annotations
 
-import gc
 import json
 import mmap
 import os
@@ -40,6 +39,8 @@ import sys
 import time
 from pathlib import Path
 from typing import Any
+
+from cosim import startup_gc
 
 PAGE_BYTES = 4096
 CRUMB, PHASE, FOLDER_LEN, WRITER_PID = 0, 1, 2, 3  # int64 words of the page
@@ -108,7 +109,7 @@ def fork_supervisor() -> int | None:
         os.setpgid(0, 0)  # a terminal's Ctrl-C reaches the supervisor, which forwards it once
         _page = page
         return None
-    gc.enable()  # it lasts as long as the run, whatever the command chose for its start-up
+    startup_gc.resume()  # it lasts as long as the run: collect, whatever the command's start chose
     try:
         return Supervisor(pid, page).run()
     finally:
