@@ -141,10 +141,10 @@ def two_process_ceiling(rounds: int = 3, loops: int = CEILING_LOOPS) -> float:
     Each process runs the speed anchor's pure-Python loop, the first on the first CPU
     this process may use and the second on the second, as a sweep's workers are placed
     (`cosim.execution.worker_cpus`; anywhere when this platform cannot pin; the lone
-    process is pinned too, where a 1-worker sweep is not). 2.0 on cores that share nothing; less where the two CPUs share a physical
-    core or the host's time: the most 2 sweep workers can scale here. A single round
-    of 0.1 s loops can come out above 2 when the lone process met a slow moment: use
-    several.
+    process is pinned too, where a 1-worker sweep is not). 2.0 on cores that share
+    nothing; less where the two CPUs share a physical core or the host's time: the most
+    2 sweep workers can scale here. A single round of 0.1 s loops can come out above 2
+    when the lone process met a slow moment: use several.
     """
     allowed = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
     cpus = allowed[:2] if len(allowed) >= 2 else [-1, -1]

@@ -13,8 +13,9 @@ So those processes hold collection back while they start (`pause`) until they ar
 under way (`resume`): the `cosim` command from the CLI's import until tick 0 for
 `run`, until it starts for any other command (cosim.cli.app), its supervisor
 collecting again once forked; a component process from its `main` (its module's
-imports done) until its component is built (cosim.transport.zenoh.runner); a
-sweep's worker process at its first sample. `resume(freeze=True)` then moves what
+imports done) until its component is built (cosim.transport.zenoh.runner); never in
+a sweep's worker, which a spawn starts from the command's script
+(`cosim.cli.interrupts.is_cosim_program`). `resume(freeze=True)` then moves what
 exists out of the generations the collector traverses (`gc.freeze`), so that later
 collections do not go over it again, at the cost of keeping that start-up garbage;
 above `COLLECT_FIRST_ABOVE` objects made since the pause it collects first: numba

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import sys
 
-from cosim import startup_gc
+from cosim import quick_exit, startup_gc
 from cosim.cli import interrupts
 
 interrupts.quiet_until_started(__name__)  # before typer and rich load (about 0.2 s)
@@ -27,7 +27,6 @@ import typer  # noqa: E402
 from cosim.cli import (analysis, distributed, fmus, foxglove, results, run, scenario,  # noqa: E402
                        ssp, watch)
 from cosim.cli.common import EXIT_USER_ERROR, user_error_exit  # noqa: E402
-from cosim import quick_exit  # noqa: E402
 from cosim.errors import UserError  # noqa: E402
 
 app = typer.Typer(add_completion=True, no_args_is_help=True,

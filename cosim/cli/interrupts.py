@@ -23,9 +23,11 @@ def is_cosim_program(module_name: str) -> bool:
     """True when this process is the `cosim` command: not a test importing the CLI, nor a
     child that multiprocessing's spawn started from the command's script (a sweep's Dask
     workers), which imports the CLI again as `__mp_main__` but never runs it."""
-    mp_main = sys.modules.get("__mp_main__")  # `import multiprocessing` aliases it to __main__;
-    if mp_main is not None and mp_main is not sys.modules.get("__main__"):  # a spawned child
-        return False                          # re-running the script gives it a module of its own
+    # `import multiprocessing` makes __mp_main__ an alias of __main__; a spawned child that
+    # re-runs the parent's script runs it as a module of its own under that name
+    mp_main = sys.modules.get("__mp_main__")
+    if mp_main is not None and mp_main is not sys.modules.get("__main__"):
+        return False
     path = sys.argv[0].replace("\\", "/") if sys.argv else ""
     return (path.rsplit("/", 1)[-1] == "cosim" or path.endswith("cosim/cli/app.py")
             or module_name == "__main__")

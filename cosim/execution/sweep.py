@@ -167,14 +167,11 @@ def run_scenario_sample(scenario_path: Path, overrides: Sequence[str], run_dir: 
     Raises:
         UserError: the scenario or the run failed (the message says why).
     """
-    from cosim import startup_gc
     from cosim.errors import UserError
     from cosim.analysis.metrics import write_metrics
     from cosim.analysis.rundata import read_json_object, recorded_run
     from cosim.execution.run import run_scenario
     from cosim.scenario.loader import load_scenario
-
-    startup_gc.resume()  # a worker process collects whatever paused it (cosim.startup_gc)
 
     # samples run side by side, one per worker: the run does not choose a CPU itself (two
     # could choose the same one); the worker's own CPU, if it has one (worker_cpus), holds the
