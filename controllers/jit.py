@@ -18,7 +18,9 @@ back to the interpreted path with a warning (an error with `on`).
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import sys
 import types
 import warnings
 from collections.abc import Callable, Iterable
@@ -70,6 +72,7 @@ def load_compiled(what: str, load: Callable[[], Any], disagreement: Callable[[An
             raise RuntimeError(f"{JIT_VARIABLE}={value}: numba does not load: {error!r}") from None
         warnings.warn(f"{what} is not used: numba does not load: {error!r}", RuntimeWarning, stacklevel=3)
         return None
+    _load_numpy_support_without_scipy_linalg()
     found = disagreement(kernel)
     if found:      # numba's cache can predate an edit of an inlined module: compile afresh once
         kernel.recompile()
@@ -80,6 +83,41 @@ def load_compiled(what: str, load: Callable[[], Any], disagreement: Callable[[An
         warnings.warn(f"{what} is not used: {found}", RuntimeWarning, stacklevel=3)
         return None
     return kernel
+
+
+def _load_numpy_support_without_scipy_linalg() -> None:
+    """Import numba's NumPy support (numba.np.arraymath) without the scipy.linalg it imports
+    only to learn whether BLAS is there, then tell it the answer.
+
+    numba loads that module at the first compile or cache load in a process. Its import asks
+    for scipy.linalg.cython_blas, which imports all of scipy.linalg: 0.2 s here, on the path
+    to tick 0, for a flag (`_HAVE_BLAS`) that only picks how a compiled np.correlate or
+    np.convolve takes inner products; the compiled parts of the controllers use no BLAS. The
+    flag is set afterwards to what numba would have found (scipy.linalg installed), so a
+    user's own compiled code in the same process gets what it would have had; np.dot and
+    np.linalg import scipy.linalg themselves when a function that uses them is compiled.
+    The block lasts one import: another thread importing scipy.linalg in that window would
+    get an ImportError, which is why it runs where the compiled parts load, before the loop.
+    """
+    if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
+        return  # loaded already, or scipy.linalg is: nothing to save
+    sys.modules["scipy.linalg"] = None  # type: ignore[assignment]  # importing it raises ImportError
+    try:
+        import numba.np.arraymath as arraymath
+    except Exception:  # noqa: BLE001 - numba's own first compile reports a broken numba
+        return
+    finally:
+        if "scipy.linalg" in sys.modules and sys.modules["scipy.linalg"] is None:
+            del sys.modules["scipy.linalg"]
+    arraymath._HAVE_BLAS = _finds("scipy.linalg")
+
+
+def _finds(module: str) -> bool:
+    """Whether `module` can be imported, without importing it (its parent package is)."""
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):
+        return False
 
 
 def is_loaded(gate: Callable[[], Any]) -> bool:
