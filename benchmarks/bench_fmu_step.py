@@ -258,13 +258,15 @@ def time_hosts(path: Path, steps: int, repeats: int) -> dict[str, list[float]]:
 
     def raw_shim(host) -> float:
         in_val, out_val, values = host._in_val, host._out_val, [list(row.values()) for row in inputs]
-        call, address = host._shim_call, host._shim_address
+        call, address, times = host._shim_call, host._shim_address, host._shim_times
         t_prev = host._t_prev
         start = time.perf_counter()
         for j in range(steps):
             t = (tick[0] + j + 1) * H
             in_val[:] = values[j]
-            if call(address, t_prev, t - t_prev):
+            times[0] = t_prev
+            times[1] = t - t_prev
+            if call(address):
                 raise RuntimeError("FMI call failed")
             out_val[:]
             t_prev = t

@@ -128,7 +128,10 @@ class FmuComponent(FmuInstance):
                 return list(self._step_per_call(tick, t, dict(zip(self._in_names, inputs))).values())
             if self._in_names:
                 self._in_val[:] = inputs
-            code = self._shim_call(self._shim_address, self._t_prev, t - self._t_prev)
+            times = self._shim_times
+            times[0] = t_prev = self._t_prev
+            times[1] = t - t_prev
+            code = self._shim_call(self._shim_address)
             if code:
                 self._shim_problem(tick, t, code)
             self._t_prev = t
@@ -223,6 +226,7 @@ class FmuComponent(FmuInstance):
         self._stepper = stepper.Stepper(self._shim, self._fmu, self._in_vr, self._in_val,
                                         self._out_vr, self._out_val)
         self._shim_call, self._shim_address = self._stepper.call, self._stepper.address
+        self._shim_times = self._stepper.times
 
     def _set_inputs(self, inputs: Mapping[str, Value]) -> None:
         if not self._in_names:

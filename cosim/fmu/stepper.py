@@ -38,7 +38,7 @@ from cosim.fmu import build, cache
 
 SOURCES = ("cosim_stepper.c", "cosim_stepper.h")
 LIBRARY = "libcosim_stepper.so"
-ABI = 2  # COSIM_STEPPER_ABI in cosim_stepper.h
+ABI = 3  # COSIM_STEPPER_ABI in cosim_stepper.h
 
 STEP_DONE, STEP_SET, STEP_DO_STEP, STEP_GET, STEP_TERMINATE = range(5)
 CALL_NAMES = {2: ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal"),
@@ -58,6 +58,7 @@ class CosimStepper(ctypes.Structure):
                 ("fmi3_do_step", ctypes.c_void_p), ("fmi3_get_float64", ctypes.c_void_p),
                 ("n_in", ctypes.c_size_t), ("in_vr", ctypes.c_void_p), ("in_values", ctypes.c_void_p),
                 ("n_out", ctypes.c_size_t), ("out_vr", ctypes.c_void_p), ("out_values", ctypes.c_void_p),
+                ("t", ctypes.c_double), ("h", ctypes.c_double),
                 ("status", ctypes.c_int * 3), ("stopped_by", ctypes.c_int),
                 ("event_handling_needed", ctypes.c_int), ("terminate_simulation", ctypes.c_int),
                 ("early_return", ctypes.c_int), ("last_successful_time", ctypes.c_double)]
@@ -121,6 +122,8 @@ def _load(path: Path) -> ctypes.CDLL:
     lib = ctypes.CDLL(str(path))
     lib.cosim_stepper_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]
     lib.cosim_stepper_step.restype = ctypes.c_int
+    lib.cosim_stepper_step_at.argtypes = [ctypes.c_void_p]
+    lib.cosim_stepper_step_at.restype = ctypes.c_int
     lib.cosim_stepper_abi.restype = ctypes.c_int
     lib.cosim_stepper_size.restype = ctypes.c_size_t
     lib.cosim_stepper_fmi2_logger.restype = None
@@ -167,8 +170,11 @@ class Stepper:
         in_values, out_values: ctypes double arrays of the same lengths (the host's own):
             the step sends `in_values` and fills `out_values`.
     Attributes:
-        call, address: the C function and the struct's address: `call(address, t, h)` is one
-            step, returning a STEP_* code (0: done).
+        call, address, times: the C function, the struct's address and a memoryview of the
+            struct's (t, h): `times[0], times[1] = t, h` then `call(address)` is one step,
+            returning a STEP_* code (0: done). Item writes of a memoryview and a call with
+            one argument cost about half of `cosim_stepper_step(address, t, h)`, whose two
+            doubles ctypes converts.
         struct: the CosimStepper (statuses, FMI 3's terminate_simulation flag).
     """
 
@@ -187,7 +193,9 @@ class Stepper:
         s.n_out, s.out_vr, s.out_values = len(out_vr), _address(out_vr), _address(out_values)
         self._arrays = (in_vr, in_values, out_vr, out_values)  # the C side points into them
         self.fmu = fmu  # keeps the FMU's library and instance alive as long as the stepper
-        self.call, self.address = lib.cosim_stepper_step, ctypes.addressof(s)
+        self.call, self.address = lib.cosim_stepper_step_at, ctypes.addressof(s)
+        pair = (ctypes.c_double * 2).from_buffer(s, CosimStepper.t.offset)  # h follows t
+        self.times = memoryview(pair).cast("B").cast("d")
 
     def failure(self, code: int) -> tuple[str, int] | None:
         """(FMI call name, status) of the call that stopped the step; None if `code` is no call failure."""

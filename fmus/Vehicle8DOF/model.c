@@ -116,11 +116,12 @@ static void load_par(const double *v, Par *p)
     p->pcx = v[VR_pCx]; p->pex = v[VR_pEx]; p->pcy = v[VR_pCy]; p->pey = v[VR_pEy];
     p->rbx1 = v[VR_rBx1]; p->rbx2 = v[VR_rBx2]; p->rby1 = v[VR_rBy1]; p->rby2 = v[VR_rBy2];
     p->sigma_x = v[VR_sigma_x]; p->sigma_y = v[VR_sigma_y]; p->v_relax = v[VR_v_relax];
+    double shape_nom = ky_shape(1.0, p->ky_load);  /* once, not per wheel: load_par runs every doStep */
     for (int i = 0; i < N_WHEELS; ++i) {
         double nom = i < 2 ? v[VR_Fz_nom_f] : v[VR_Fz_nom_r];
         p->fz_nom[i] = nom > 0.0 ? nom : p->fz0[i];
         /* K(Fz_nom) = Cf or Cr */
-        p->ky_ref[i] = p->c_alpha[i] / ky_shape(1.0, p->ky_load);
+        p->ky_ref[i] = p->c_alpha[i] / shape_nom;
     }
 }
 

@@ -69,6 +69,11 @@ EXPORT int cosim_stepper_step(CosimStepper *stepper, double t, double h)
     return stepper->stopped_by;
 }
 
+EXPORT int cosim_stepper_step_at(CosimStepper *stepper)
+{
+    return cosim_stepper_step(stepper, stepper->t, stepper->h);
+}
+
 EXPORT void cosim_stepper_fmi2_logger(fmi2ComponentEnvironment environment, fmi2String instance_name,
                                       fmi2Status status, fmi2String category, fmi2String message, ...)
 {

@@ -4,7 +4,9 @@
  * that drives an FMU already loaded and instantiated by someone else (fmpy).
  * The importer fills a CosimStepper once with the FMU's own FMI function
  * pointers, the instance and the value-reference and value arrays, then
- * calls cosim_stepper_step once per tick. The calls and their order are
+ * calls cosim_stepper_step once per tick (or writes t and h into the struct
+ * and calls cosim_stepper_step_at: no double arguments, which a foreign
+ * function interface such as ctypes converts at a cost). The calls and their order are
  * exactly those an importer makes one by one:
  *
  *     FMI 2: fmi2SetReal(in), fmi2DoStep(t, h, fmi2True), fmi2GetReal(out)
@@ -20,7 +22,7 @@
 #include "fmi2FunctionTypes.h"
 #include "fmi3FunctionTypes.h"
 
-#define COSIM_STEPPER_ABI 2
+#define COSIM_STEPPER_ABI 3
 
 /* What stopped a step (cosim_stepper_step's return value and CosimStepper.stopped_by). */
 enum {
@@ -50,6 +52,9 @@ typedef struct CosimStepper {
     size_t n_out;                           /* outputs: value references and where they go */
     const unsigned int *out_vr;
     double *out_values;
+    /* written by the importer before each cosim_stepper_step_at */
+    double t;                               /* communication point */
+    double h;                               /* communication step size */
     /* written by every cosim_stepper_step */
     int status[3];                          /* set, doStep, get: FMI status, -1 when not called */
     int stopped_by;                         /* COSIM_STEP_* */
@@ -61,6 +66,9 @@ typedef struct CosimStepper {
 
 /* One step from communication point t over h; returns stopped_by (COSIM_STEP_DONE when all went well). */
 int cosim_stepper_step(CosimStepper *stepper, double t, double h);
+
+/* cosim_stepper_step(stepper, stepper->t, stepper->h). */
+int cosim_stepper_step_at(CosimStepper *stepper);
 
 /* FMI 2 logger that routes each instance's messages to its own sink.
  *

@@ -76,6 +76,20 @@ def test_compiles_once_per_source_key_with_the_fmus_strict_flags(cache):
     assert lib.cosim_stepper_size() == ctypes.sizeof(stepper.CosimStepper)
 
 
+def test_the_times_view_is_the_structs_t_and_h(fmu_dir):
+    """The host writes (t, h) through Stepper.times and calls cosim_stepper_step_at, which reads them."""
+    path, _ = built_fmu(fmu_dir, "Bicycle", 2)
+    host = make_host(path, True)
+    try:
+        times, struct_ = host._stepper.times, host._stepper.struct
+        times[0], times[1] = 1.25, 0.01
+        assert (struct_.t, struct_.h) == (1.25, 0.01)
+        host.step(1, H, realistic_inputs(1)[0])
+        assert (struct_.t, struct_.h) == (0.0, H)  # the step from t_prev = 0 over H
+    finally:
+        host.stop()
+
+
 @pytest.mark.parametrize("model", ["Vehicle8DOF", "Bicycle"])
 @pytest.mark.parametrize("version", [2, 3])
 def test_outputs_bit_identical_to_the_per_call_path(fmu_dir, model, version):
