@@ -127,11 +127,15 @@ class InputReader:
             matrix = np.array(arrays, dtype=np.float64)
         except (TypeError, ValueError):
             matrix = None
-        if (matrix is not None and matrix.ndim == 2 and matrix.shape[1] >= 2
-                and _all(np.isfinite(matrix), axis=None)
-                and _all(matrix[4, 1:] > matrix[4, :-1])):     # row 4: s (controllers.trajectory.FIELDS)
-            self._prepared = PreparedWindow(matrix, self._compiled)
-            return matrix.tobytes()
+        if matrix is not None and matrix.ndim == 2 and matrix.shape[1] >= 2:
+            if self._compiled:      # the same test and the packing in one compiled call
+                self._prepared = PreparedWindow.checked(matrix)
+                if self._prepared is not None:
+                    return matrix.tobytes()
+            elif (_all(np.isfinite(matrix), axis=None)
+                  and _all(matrix[4, 1:] > matrix[4, :-1])):     # row 4: s (controllers.trajectory.FIELDS)
+                self._prepared = PreparedWindow(matrix, False)
+                return matrix.tobytes()
         window = TrajectoryWindow.from_signals(inputs, "ref")
         self._prepared = None
         if not is_empty(window):

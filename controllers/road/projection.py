@@ -133,12 +133,33 @@ class PreparedWindow:
         self.compiled = self.compiled_pair = None
         self.chords = matrix.shape[1] - 1
         self._segments: list[tuple | None] = [None] * self.chords
-        if kernel is not None:      # the field lists only when asked for (__getattr__): not per tick
-            self.compiled, self.compiled_pair = _bind(kernel, matrix)
-            self._matrix = matrix
+        if kernel is not None:      # pack takes a writable C-ordered array: its one compiled signature
+            self._use_compiled(kernel, matrix, kernel.pack(np.array(matrix, dtype=np.float64, order="C")))
             return
         self.x, self.y, self.psi, self.kappa, self.s, self.v, self.a = matrix.tolist()
         self._prepare_search(matrix)
+
+    @classmethod
+    def checked(cls, matrix: np.ndarray) -> PreparedWindow | None:
+        """The compiled path's window of `matrix` (a fresh C-ordered float64 (7, points) array
+        this object may keep) if it passes InputReader's quick test (every value finite, s
+        strictly increasing), tested and packed in one compiled call; else None (the caller
+        validates it the long way). Only when the compiled projection is loaded."""
+        kernel = compiled_kernel()
+        packed = kernel.checked_pack(matrix)
+        if not packed.shape[1]:
+            return None
+        window = cls.__new__(cls)
+        window.chords = matrix.shape[1] - 1
+        window._segments = [None] * window.chords
+        window._use_compiled(kernel, matrix, packed)
+        return window
+
+    def _use_compiled(self, kernel, matrix: np.ndarray, packed: np.ndarray) -> None:
+        """foot()'s and cg_and_preview()'s compiled paths on the packed window; the field
+        lists only when asked for (__getattr__), not per tick."""
+        self.compiled, self.compiled_pair = _bind(kernel, packed)
+        self._matrix = matrix
 
     def __getattr__(self, name: str):
         """A field list on the compiled path, made on first use (point_at, segment read them)."""
@@ -318,10 +339,9 @@ class PreparedWindow:
         return seg
 
 
-def _bind(kernel, matrix: np.ndarray) -> tuple[functools.partial, functools.partial]:
-    """kernel's foot_fields and cg_and_preview_fields on the window of `matrix` (packed once for both)."""
-    window = kernel.pack(np.array(matrix, dtype=np.float64, order="C"))   # writable: the one compiled signature
-    return functools.partial(kernel.foot_fields, window), functools.partial(kernel.cg_and_preview_fields, window)
+def _bind(kernel, packed: np.ndarray) -> tuple[functools.partial, functools.partial]:
+    """kernel's foot_fields and cg_and_preview_fields on a packed window (kernel.pack's, once for both)."""
+    return functools.partial(kernel.foot_fields, packed), functools.partial(kernel.cg_and_preview_fields, packed)
 
 
 @functools.cache
@@ -345,12 +365,22 @@ def _disagreement(kernel) -> str:
     """'' if kernel gives foot()'s tuples bit for bit on a test window, else the first point where it does not.
 
     Compared by repr, which tells -0.0 from 0.0, 0 from 0.0 and a numpy scalar from a float.
+    The window is packed by checked_pack, a controller's path, which must also agree with
+    pack and refuse what InputReader's quick test refuses.
     """
     s = np.linspace(0.0, 62.0, 32)
     psi = 0.3 + 0.012 * s + 0.0004 * s * s
     matrix = np.array([40.0 + 30.0 * np.sin(psi) + 0.9 * s, -5.0 - 30.0 * np.cos(psi), psi,
                        0.012 + 0.0008 * s, s, 8.0 + 0.05 * s, 0.05 + 0.0 * s])
-    interpreted, (bound, pair) = PreparedWindow(matrix, compiled=False), _bind(kernel, matrix)
+    packed = kernel.checked_pack(matrix)
+    if packed.tobytes() != kernel.pack(matrix).tobytes():
+        return "checked_pack packs the test window unlike pack"
+    for row, column, value in ((2, 5, math.nan), (6, 0, -math.inf), (4, 9, s[8])):
+        bad = matrix.copy()
+        bad[row, column] = value
+        if kernel.checked_pack(bad).shape[1]:
+            return f"checked_pack accepts a window with {value} at row {row}, point {column}"
+    interpreted, (bound, pair) = PreparedWindow(matrix, compiled=False), _bind(kernel, packed)
     for px in np.linspace(-20.0, 130.0, 31).tolist():
         for py in np.linspace(-60.0, 40.0, 21).tolist():
             expected, got = foot(interpreted, px, py), finish(bound(px, py), px, py)

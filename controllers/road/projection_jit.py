@@ -54,6 +54,22 @@ def pack(matrix):
 
 
 @_compile
+def checked_pack(matrix):
+    """pack(matrix) when the matrix passes InputReader's quick test of a window (every value
+    finite, row 4, s, strictly increasing), else an empty (10, 0) array: the test and the
+    packing in one call, for a controller's new window."""
+    rows, points = matrix.shape
+    for row in range(rows):
+        for k in range(points):
+            if not math.isfinite(matrix[row, k]):
+                return np.zeros((10, 0))
+    for k in range(points - 1):
+        if not matrix[4, k + 1] > matrix[4, k]:
+            return np.zeros((10, 0))
+    return pack(matrix)
+
+
+@_compile
 def foot_fields(window, px, py):
     """controllers.road.hermite's foot fields of (px, py) on a window.
 
@@ -100,5 +116,6 @@ def cg_and_preview_fields(window, x, y, psi, ls):
 
 def recompile() -> None:
     """Compile every function here afresh (and replace their cache entries), hermite's first."""
-    for function in (_segment, _refine, _evaluate, _beyond, pack, foot_fields, cg_and_preview_fields):
+    for function in (_segment, _refine, _evaluate, _beyond, pack, checked_pack, foot_fields,
+                     cg_and_preview_fields):
         function.recompile()

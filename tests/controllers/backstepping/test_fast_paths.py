@@ -178,8 +178,19 @@ def test_backstepping_step_matches_the_reference_in_closed_loop(settings, path, 
     assert worst <= 1e-9
 
 
-def test_input_reader_reuses_a_window_only_while_it_is_unchanged():
+def _reader(jit_mode, mode: str) -> InputReader:
+    """An InputReader on the interpreted window path (off) or the compiled one (on)."""
+    if mode == "on":
+        pytest.importorskip("numba")
+    jit_mode(mode)
     reader = InputReader()
+    assert reader._compiled == (mode == "on")
+    return reader
+
+
+@pytest.mark.parametrize("mode", ["off", "on"])
+def test_input_reader_reuses_a_window_only_while_it_is_unchanged(jit_mode, mode):
+    reader = _reader(jit_mode, mode)
     plant = {"x": 0.0, "y": 0.2, "psi": 0.0, "vx": 5.0, "vy": 0.0, "r": 0.0}
     signals = make_window(LinePath(), -5.0).to_signals("ref")
     _, first = reader.read(plant | signals, 0.0)
@@ -208,9 +219,10 @@ def test_input_reader_reuses_a_window_only_while_it_is_unchanged():
         reader.read(plant | {"vy": math.nan} | frozen, 0.09)
 
 
-def test_input_reader_takes_read_only_views_of_a_read_only_block_by_identity():
+@pytest.mark.parametrize("mode", ["off", "on"])
+def test_input_reader_takes_read_only_views_of_a_read_only_block_by_identity(jit_mode, mode):
     # the in-process master hands out read-only views of one read-only copy of the planner's arrays
-    reader = InputReader()
+    reader = _reader(jit_mode, mode)
     plant = {"x": 0.0, "y": 0.2, "psi": 0.0, "vx": 5.0, "vy": 0.0, "r": 0.0}
     signals = make_window(LinePath(), -5.0).to_signals("ref")
     block = np.array(list(signals.values()))

@@ -10,6 +10,7 @@ the interpreted path).
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -18,6 +19,8 @@ import numpy as np
 import pytest
 
 from controllers.backstepping.component import BacksteppingController
+from controllers.tracking import InputReader
+from cosim.component import ComponentError
 from controllers.linear_plant import LinearPlant
 from controllers.road.projection import PreparedWindow, cg_and_preview, foot, point_at
 from controllers.vehicle_params import VehicleParams
@@ -48,6 +51,39 @@ def test_a_window_of_coincident_points_gives_the_same_on_both_paths(jit_mode):
     compiled, interpreted = PreparedWindow(matrix), PreparedWindow(matrix, compiled=False)
     for point in ((3.0, -1.0), (5.0, 2.0), (0.0, 0.0)):
         assert same(cg_and_preview(compiled, *point, 0.4, 5.0), cg_and_preview(interpreted, *point, 0.4, 5.0))
+
+
+def _verdict(reader, plant, signals, t):
+    """What InputReader.read makes of a window: the error message, or the CG's and preview's feet."""
+    try:
+        _, prepared = reader.read(plant | signals, t)
+    except ComponentError as error:
+        return str(error)
+    return None if prepared is None else cg_and_preview(prepared, plant["x"], plant["y"], plant["psi"], 5.0)
+
+
+def test_the_readers_compiled_check_refuses_and_accepts_what_the_interpreted_one_does(jit_mode):
+    # the compiled path tests a new window in checked_pack; the interpreted one with numpy
+    rng = np.random.default_rng(5)
+    plant = {"x": 0.5, "y": 0.3, "psi": 0.05, "vx": 5.0, "vy": 0.0, "r": 0.0}
+    cases = 0
+    for window in random_windows(rng):
+        for trial in range(12):
+            signals = {name: np.array(value) for name, value in window.to_signals("ref").items()}
+            name, index = list(signals)[trial % 7], int(rng.integers(0, 64))
+            if trial % 4 == 1:
+                signals[name][index] = (math.nan, math.inf, -math.inf)[trial % 3]
+            elif trial % 4 == 2:                              # s not increasing at one point
+                signals["ref_s"][index] = signals["ref_s"][max(index - 1, 0)]
+            elif trial % 4 == 3:
+                signals["ref_s"][index] = signals["ref_s"][index] - 3.0
+            verdicts = []
+            for mode in ("off", "on"):
+                jit_mode(mode)
+                verdicts.append(_verdict(InputReader(), plant, signals, 0.5))
+            assert same(verdicts[0], verdicts[1]), (trial, name, index)
+            cases += 1
+    assert cases == 120
 
 
 def test_compiled_foot_equals_the_interpreted_one_bit_for_bit(jit_mode):
