@@ -18,9 +18,12 @@ back to the interpreted path with a warning (an error with `on`).
 
 from __future__ import annotations
 
+import importlib.abc
+import importlib.machinery
 import importlib.util
 import os
 import sys
+import threading
 import types
 import warnings
 from collections.abc import Callable, Iterable
@@ -93,31 +96,52 @@ def _load_numpy_support_without_scipy_linalg() -> None:
     for scipy.linalg.cython_blas, which imports all of scipy.linalg: 0.2 s here, on the path
     to tick 0, for a flag (`_HAVE_BLAS`) that only picks how a compiled np.correlate or
     np.convolve takes inner products; the compiled parts of the controllers use no BLAS. The
-    flag is set afterwards to what numba would have found (scipy.linalg installed), so a
-    user's own compiled code in the same process gets what it would have had; np.dot and
-    np.linalg import scipy.linalg themselves when a function that uses them is compiled.
-    The block lasts one import: another thread importing scipy.linalg in that window would
-    get an ImportError, which is why it runs where the compiled parts load, before the loop.
+    flag is set afterwards to whether scipy.linalg's cython_blas module is installed, what
+    numba finds on a working scipy (its own test imports that module, which a broken scipy
+    could fail, and numba 0.68 then also compares LAPACK's integer width, which is not
+    repeated here), so a user's own compiled code in the same process gets what it would
+    have had; np.dot and np.linalg import scipy.linalg themselves when a function that uses
+    them is compiled. The import is hidden from this thread only (`_HiddenOnThisThread`):
+    another thread importing scipy.linalg meanwhile gets it.
     """
     if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
         return  # loaded already, or scipy.linalg is: nothing to save
-    sys.modules["scipy.linalg"] = None  # type: ignore[assignment]  # importing it raises ImportError
+    hidden = _HiddenOnThisThread("scipy.linalg")
+    sys.meta_path.insert(0, hidden)
     try:
         import numba.np.arraymath as arraymath
     except Exception:  # noqa: BLE001 - numba's own first compile reports a broken numba
         return
     finally:
-        if "scipy.linalg" in sys.modules and sys.modules["scipy.linalg"] is None:
-            del sys.modules["scipy.linalg"]
-    arraymath._HAVE_BLAS = _finds("scipy.linalg")
+        sys.meta_path.remove(hidden)
+    arraymath._HAVE_BLAS = _has_extension("scipy.linalg", "cython_blas")
 
 
-def _finds(module: str) -> bool:
-    """Whether `module` can be imported, without importing it (its parent package is)."""
+class _HiddenOnThisThread(importlib.abc.MetaPathFinder):
+    """An import finder for which package `name` and its submodules do not exist, for the
+    thread that made it only (the others go on to the next finders)."""
+
+    def __init__(self, name: str) -> None:
+        self.name, self.thread = name, threading.get_ident()
+
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> None:
+        if threading.get_ident() == self.thread and (fullname == self.name
+                                                     or fullname.startswith(self.name + ".")):
+            raise ModuleNotFoundError(f"No module named {fullname!r}", name=fullname)
+        return None
+
+
+def _has_extension(package: str, module: str) -> bool:
+    """Whether compiled module `module` of `package` is installed, without importing the
+    package (its parent is imported)."""
     try:
-        return importlib.util.find_spec(module) is not None
+        spec = importlib.util.find_spec(package)
     except (ImportError, ValueError):
         return False
+    folders = [] if spec is None else list(spec.submodule_search_locations or ())
+    suffixes = tuple(importlib.machinery.EXTENSION_SUFFIXES)
+    return any(entry.name.startswith(module + ".") and entry.name.endswith(suffixes)
+               for folder in folders if os.path.isdir(folder) for entry in os.scandir(folder))
 
 
 def is_loaded(gate: Callable[[], Any]) -> bool:

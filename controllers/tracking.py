@@ -58,7 +58,6 @@ PLANT_NAMES: tuple[str, ...] = tuple(port.name for port in PLANT_INPUTS)
 WINDOW_NAMES: tuple[str, ...] = tuple(f"ref_{name}" for name, _, _ in FIELDS)
 INPUT_NAMES: tuple[str, ...] = tuple(port.name for port in CONTROLLER_INPUTS)    # plant, then ref_*
 _pick_inputs = operator.itemgetter(*INPUT_NAMES)
-_all = np.logical_and.reduce      # ndarray.all without its Python wrapper (once per window)
 _PI, _TWO_PI = math.pi, 2.0 * math.pi
 
 
@@ -119,8 +118,8 @@ class InputReader:
     def _prepare(self, arrays: tuple, inputs: Mapping[str, Value], t: float) -> bytes:
         """Check the window, keep its PreparedWindow (None for an all-zero window); return its bytes.
 
-        Fast path: one (fields x points) matrix, all finite, s increasing: the
-        window is valid and not empty. Anything else goes through
+        Fast path: one (fields x points) matrix, all finite, s increasing
+        (PreparedWindow.checked): the window is valid and not empty. Anything else goes through
         validate_window for a message naming the field, index and value.
         """
         try:
@@ -128,13 +127,8 @@ class InputReader:
         except (TypeError, ValueError):
             matrix = None
         if matrix is not None and matrix.ndim == 2 and matrix.shape[1] >= 2:
-            if self._compiled:      # the same test and the packing in one compiled call
-                self._prepared = PreparedWindow.checked(matrix)
-                if self._prepared is not None:
-                    return matrix.tobytes()
-            elif (_all(np.isfinite(matrix), axis=None)
-                  and _all(matrix[4, 1:] > matrix[4, :-1])):     # row 4: s (controllers.trajectory.FIELDS)
-                self._prepared = PreparedWindow(matrix, False)
+            self._prepared = PreparedWindow.checked(matrix, self._compiled)
+            if self._prepared is not None:
                 return matrix.tobytes()
         window = TrajectoryWindow.from_signals(inputs, "ref")
         self._prepared = None

@@ -5,6 +5,7 @@ only imports the CLI."""
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
 import textwrap
@@ -106,8 +107,11 @@ def test_a_child_spawned_from_the_command_script_collects(tmp_path: Path):
             sys.exit(process.exitcode)
     """))
     out = tmp_path / "child.txt"
+    # SIGINT as a terminal leaves it: a suite started in the background (`cmd &`) inherits it
+    # ignored, and Python installs its handler only over the default action
     done = subprocess.run([sys.executable, str(script), str(out)], capture_output=True, text=True,
-                          cwd=CHECKOUT_DIR, timeout=120)
+                          cwd=CHECKOUT_DIR, timeout=120,
+                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "False"
     assert out.read_text() == "True True"

@@ -97,6 +97,7 @@ def validate_window(window: TrajectoryWindow, prefix: str = "ref") -> None:
 
 
 _FIELD_NAMES = frozenset(name for name, _, _ in FIELDS)   # x, y, psi, kappa, s, v, a
+_all = np.logical_and.reduce      # ndarray.all without its Python wrapper (once per window)
 
 
 class PreparedWindow:
@@ -140,20 +141,31 @@ class PreparedWindow:
         self._prepare_search(matrix)
 
     @classmethod
-    def checked(cls, matrix: np.ndarray) -> PreparedWindow | None:
-        """The compiled path's window of `matrix` (a fresh C-ordered float64 (7, points) array
-        this object may keep) if it passes InputReader's quick test (every value finite, s
-        strictly increasing), tested and packed in one compiled call; else None (the caller
-        validates it the long way). Only when the compiled projection is loaded."""
-        kernel = compiled_kernel()
-        packed = kernel.checked_pack(matrix)
-        if not packed.shape[1]:
-            return None
-        window = cls.__new__(cls)
-        window.chords = matrix.shape[1] - 1
-        window._segments = [None] * window.chords
-        window._use_compiled(kernel, matrix, packed)
-        return window
+    def checked(cls, matrix: np.ndarray, compiled: bool) -> PreparedWindow | None:
+        """The window of `matrix` (a fresh C-ordered float64 (fields, points) array this object
+        may keep) if it passes a controller's quick test: the 7 fields, every value finite, s
+        strictly increasing; else None (the caller validates it the long way, for a message).
+
+        Args:
+            matrix: the window's fields as rows, in controllers.trajectory.FIELDS order.
+            compiled: the compiled path, tested and packed in one compiled call (when the
+                compiled projection does not load, the interpreted path).
+        """
+        kernel = compiled_kernel() if compiled else None
+        if kernel is not None:
+            packed = kernel.checked_pack(matrix)
+            if not packed.shape[1]:
+                return None
+            window = cls.__new__(cls)
+            window.compiled = window.compiled_pair = None
+            window.chords = matrix.shape[1] - 1
+            window._segments = [None] * window.chords
+            window._use_compiled(kernel, matrix, packed)
+            return window
+        if (matrix.shape[0] == len(FIELDS) and _all(np.isfinite(matrix), axis=None)
+                and _all(matrix[4, 1:] > matrix[4, :-1])):     # row 4: s (controllers.trajectory.FIELDS)
+            return cls(matrix, False)
+        return None
 
     def _use_compiled(self, kernel, matrix: np.ndarray, packed: np.ndarray) -> None:
         """foot()'s and cg_and_preview()'s compiled paths on the packed window; the field
@@ -346,7 +358,7 @@ def _bind(kernel, packed: np.ndarray) -> tuple[functools.partial, functools.part
 
 @functools.cache
 def compiled_kernel():
-    """The controllers.road.projection_jit module (foot_fields, pack), or None for the interpreted path.
+    """The controllers.road.projection_jit module (foot_fields, pack, checked_pack), or None for the interpreted path.
 
     controllers.jit.load_compiled decides (COSIM_JIT; numba missing or broken;
     the compiled code checked bit for bit against the interpreted path on a
@@ -380,6 +392,8 @@ def _disagreement(kernel) -> str:
         bad[row, column] = value
         if kernel.checked_pack(bad).shape[1]:
             return f"checked_pack accepts a window with {value} at row {row}, point {column}"
+    if kernel.checked_pack(np.array(matrix[:6])).shape[1]:
+        return "checked_pack accepts a window of 6 fields"
     interpreted, (bound, pair) = PreparedWindow(matrix, compiled=False), _bind(kernel, packed)
     for px in np.linspace(-20.0, 130.0, 31).tolist():
         for py in np.linspace(-60.0, 40.0, 21).tolist():

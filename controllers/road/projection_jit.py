@@ -57,8 +57,11 @@ def pack(matrix):
 def checked_pack(matrix):
     """pack(matrix) when the matrix passes InputReader's quick test of a window (every value
     finite, row 4, s, strictly increasing), else an empty (10, 0) array: the test and the
-    packing in one call, for a controller's new window."""
+    packing in one call, for a controller's new window. A matrix of other than the 7 rows of
+    the fields is refused too (numba does not check bounds)."""
     rows, points = matrix.shape
+    if rows != 7:
+        return np.zeros((10, 0))
     for row in range(rows):
         for k in range(points):
             if not math.isfinite(matrix[row, k]):

@@ -126,11 +126,13 @@ def _load(path: Path) -> ctypes.CDLL:
     lib.cosim_stepper_step_at.restype = ctypes.c_int
     lib.cosim_stepper_abi.restype = ctypes.c_int
     lib.cosim_stepper_size.restype = ctypes.c_size_t
+    lib.cosim_stepper_time_offset.restype = ctypes.c_size_t
     lib.cosim_stepper_fmi2_logger.restype = None
-    if lib.cosim_stepper_abi() != ABI or lib.cosim_stepper_size() != ctypes.sizeof(CosimStepper):
-        raise StepperBuildError(f"{path}: ABI {lib.cosim_stepper_abi()} / struct size "
-                                f"{lib.cosim_stepper_size()}, the binding expects ABI {ABI} / "
-                                f"{ctypes.sizeof(CosimStepper)}")
+    found = (lib.cosim_stepper_abi(), lib.cosim_stepper_size(), lib.cosim_stepper_time_offset())
+    expected = (ABI, ctypes.sizeof(CosimStepper), CosimStepper.t.offset)
+    if found != expected:
+        raise StepperBuildError(f"{path}: ABI / struct size / offset of t {found}, the binding "
+                                f"expects {expected}")
     return lib
 
 

@@ -1,5 +1,6 @@
 /* cosim_stepper.h: one FMU co-simulation step (set inputs, doStep, get outputs) in one call. */
 #include <stdarg.h>
+#include <stddef.h>
 #include <stdio.h>
 #include "cosim_stepper.h"
 
@@ -98,4 +99,9 @@ EXPORT int cosim_stepper_abi(void)
 EXPORT size_t cosim_stepper_size(void)
 {
     return sizeof(CosimStepper);
+}
+
+EXPORT size_t cosim_stepper_time_offset(void)
+{
+    return offsetof(CosimStepper, t);
 }

@@ -90,8 +90,9 @@ typedef struct CosimFmi2Log {
 void cosim_stepper_fmi2_logger(fmi2ComponentEnvironment environment, fmi2String instance_name,
                                fmi2Status status, fmi2String category, fmi2String message, ...);
 
-/* COSIM_STEPPER_ABI, and sizeof(CosimStepper): the binding checks its mirror of the struct. */
+/* COSIM_STEPPER_ABI, sizeof(CosimStepper) and the offset of t: the binding checks its mirror of the struct. */
 int cosim_stepper_abi(void);
 size_t cosim_stepper_size(void);
+size_t cosim_stepper_time_offset(void);
 
 #endif

@@ -1,6 +1,6 @@
 """The compiled parts load without scipy.linalg (controllers.jit._load_numpy_support_without_scipy_linalg),
-and numba in that process answers as it would have: the BLAS flag it would have set, np.dot and
-np.correlate compiled afterwards giving the bits of a process that loaded numba its own way.
+and numba in that process answers as it would have: the BLAS flag it sets on a working scipy, np.dot
+and np.correlate compiled afterwards giving the bits of a process that loaded numba its own way.
 
 Each case runs in a fresh interpreter: which modules are loaded is process-wide state."""
 
@@ -49,6 +49,8 @@ import os
 os.environ["COSIM_JIT"] = "on"
 from controllers.backstepping import step_path
 assert step_path.compiled_step() is not None
+import sys
+assert "numba.np.arraymath" in sys.modules  # loaded by the step's load, through the detour
 """
 
 NUMBAS_OWN = """
@@ -98,3 +100,21 @@ def test_a_process_whose_scipy_linalg_is_missing_gets_the_flag_off(tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip().splitlines()[-1] == "False"
+
+
+def test_the_hiding_finder_hides_the_package_from_its_own_thread_only():
+    import threading
+
+    from controllers.jit import _HiddenOnThisThread
+
+    hidden = _HiddenOnThisThread("scipy.linalg")
+    with pytest.raises(ModuleNotFoundError):
+        hidden.find_spec("scipy.linalg")
+    with pytest.raises(ModuleNotFoundError):
+        hidden.find_spec("scipy.linalg.cython_blas")
+    assert hidden.find_spec("scipy.linalgebra") is None and hidden.find_spec("scipy") is None
+    seen = []
+    other = threading.Thread(target=lambda: seen.append(hidden.find_spec("scipy.linalg")))
+    other.start()
+    other.join()
+    assert seen == [None]  # another thread goes on to the next finders

@@ -74,6 +74,8 @@ def test_compiles_once_per_source_key_with_the_fmus_strict_flags(cache):
     lib = stepper.load_stepper()
     assert lib.cosim_stepper_abi() == stepper.ABI
     assert lib.cosim_stepper_size() == ctypes.sizeof(stepper.CosimStepper)
+    assert lib.cosim_stepper_time_offset() == stepper.CosimStepper.t.offset
+    assert stepper.CosimStepper.h.offset == stepper.CosimStepper.t.offset + 8  # Stepper.times spans both
 
 
 def test_the_times_view_is_the_structs_t_and_h(fmu_dir):

@@ -20,6 +20,7 @@ import pytest
 
 from controllers.backstepping.component import BacksteppingController
 from controllers.tracking import InputReader
+from controllers.trajectory import FIELDS
 from cosim.component import ComponentError
 from controllers.linear_plant import LinearPlant
 from controllers.road.projection import PreparedWindow, cg_and_preview, foot, point_at
@@ -59,14 +60,17 @@ def _verdict(reader, plant, signals, t):
         _, prepared = reader.read(plant | signals, t)
     except ComponentError as error:
         return str(error)
-    return None if prepared is None else cg_and_preview(prepared, plant["x"], plant["y"], plant["psi"], 5.0)
+    if prepared is None:
+        return None
+    assert (prepared.compiled is not None) == reader._compiled
+    return cg_and_preview(prepared, plant["x"], plant["y"], plant["psi"], 5.0)
 
 
 def test_the_readers_compiled_check_refuses_and_accepts_what_the_interpreted_one_does(jit_mode):
     # the compiled path tests a new window in checked_pack; the interpreted one with numpy
     rng = np.random.default_rng(5)
     plant = {"x": 0.5, "y": 0.3, "psi": 0.05, "vx": 5.0, "vy": 0.0, "r": 0.0}
-    cases = 0
+    cases = refused = 0
     for window in random_windows(rng):
         for trial in range(12):
             signals = {name: np.array(value) for name, value in window.to_signals("ref").items()}
@@ -83,7 +87,14 @@ def test_the_readers_compiled_check_refuses_and_accepts_what_the_interpreted_one
                 verdicts.append(_verdict(InputReader(), plant, signals, 0.5))
             assert same(verdicts[0], verdicts[1]), (trial, name, index)
             cases += 1
-    assert cases == 120
+            refused += isinstance(verdicts[0], str)
+    assert cases == 120 and 40 <= refused <= 90  # both kinds, by the construction above
+    jit_mode("on")
+    matrix = np.array([getattr(window, name) for name, _, _ in FIELDS])
+    checked = PreparedWindow.checked(matrix, True)
+    assert checked is not None and checked.compiled is not None   # the quick test's own path
+    assert PreparedWindow.checked(np.array(matrix[:6]), True) is None    # not the 7 fields
+    assert PreparedWindow.checked(np.array(matrix[:6]), False) is None
 
 
 def test_compiled_foot_equals_the_interpreted_one_bit_for_bit(jit_mode):
