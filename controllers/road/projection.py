@@ -122,9 +122,12 @@ class PreparedWindow:
         compiled: True: the compiled path when it exists (loading it at the first such call);
             False: the interpreted one; None: the compiled one only if this process has
             loaded it already (never numba's load in the middle of a run).
+        packed: on the compiled path, the window as the kernel's pack made it already
+            (`checked`); None: packed here.
     """
 
-    def __init__(self, window: TrajectoryWindow | np.ndarray, compiled: bool | None = None) -> None:
+    def __init__(self, window: TrajectoryWindow | np.ndarray, compiled: bool | None = None,
+                 packed: np.ndarray | None = None) -> None:
         # one (field, point) matrix in controllers.trajectory.FIELDS order
         matrix = window if isinstance(window, np.ndarray) else np.array(
             [getattr(window, name) for name, _, _ in FIELDS], dtype=np.float64)
@@ -134,8 +137,11 @@ class PreparedWindow:
         self.compiled = self.compiled_pair = None
         self.chords = matrix.shape[1] - 1
         self._segments: list[tuple | None] = [None] * self.chords
-        if kernel is not None:      # pack takes a writable C-ordered array: its one compiled signature
-            self._use_compiled(kernel, matrix, kernel.pack(np.array(matrix, dtype=np.float64, order="C")))
+        if kernel is not None:      # the field lists only when asked for (__getattr__): not per tick
+            if packed is None:      # pack takes a writable C-ordered array: its one compiled signature
+                packed = kernel.pack(np.array(matrix, dtype=np.float64, order="C"))
+            self.compiled, self.compiled_pair = _bind(kernel, packed)
+            self._matrix = matrix
             return
         self.x, self.y, self.psi, self.kappa, self.s, self.v, self.a = matrix.tolist()
         self._prepare_search(matrix)
@@ -154,24 +160,11 @@ class PreparedWindow:
         kernel = compiled_kernel() if compiled else None
         if kernel is not None:
             packed = kernel.checked_pack(matrix)
-            if not packed.shape[1]:
-                return None
-            window = cls.__new__(cls)
-            window.compiled = window.compiled_pair = None
-            window.chords = matrix.shape[1] - 1
-            window._segments = [None] * window.chords
-            window._use_compiled(kernel, matrix, packed)
-            return window
+            return cls(matrix, True, packed) if packed.shape[1] else None
         if (matrix.shape[0] == len(FIELDS) and _all(np.isfinite(matrix), axis=None)
                 and _all(matrix[4, 1:] > matrix[4, :-1])):     # row 4: s (controllers.trajectory.FIELDS)
             return cls(matrix, False)
         return None
-
-    def _use_compiled(self, kernel, matrix: np.ndarray, packed: np.ndarray) -> None:
-        """foot()'s and cg_and_preview()'s compiled paths on the packed window; the field
-        lists only when asked for (__getattr__), not per tick."""
-        self.compiled, self.compiled_pair = _bind(kernel, packed)
-        self._matrix = matrix
 
     def __getattr__(self, name: str):
         """A field list on the compiled path, made on first use (point_at, segment read them)."""
