@@ -8,7 +8,9 @@ checked and prepared once per new window (controllers.tracking.InputReader),
 the projection, then everything else in controllers.backstepping.step_kernel
 (eq. 7, the lateral law, the limits), which numba compiles from the same
 source when it is installed (COSIM_JIT; step_path chooses); tests hold both
-to the readable numpy forms. Each step:
+to the readable numpy forms. With both the projection and the step compiled, the
+projection writes the feet into a buffer that the compiled step reads, and only
+the tangents' math.hypot runs in between (CPython's, for the interpreted path's bits). Each step:
 
 1. dt from consecutive step times (first step: `period`);
 2. friction estimate: explicit Euler with the previous step's mu_hat_dot, then
@@ -41,6 +43,9 @@ from __future__ import annotations
 
 import operator
 from collections.abc import Mapping, Sequence
+from math import hypot
+
+import numpy as np
 
 from cosim.component import Component, ComponentError, ModelReference, Port, Value
 from controllers import jit
@@ -48,7 +53,7 @@ from controllers.backstepping import step_kernel
 from controllers.backstepping.lateral import (AdaptationSettings, LateralGains, ScalarLateralLaw,
                                               singular_steer_error)
 from controllers.backstepping.step_path import compiled_step
-from controllers.road.projection import cg_and_preview
+from controllers.road.projection import FEET_SIZE, cg_and_preview
 from controllers.tracking import (COMMAND_OUTPUTS, CONTROLLER_INPUTS, INPUT_NAMES, ActuatorLimits, InputReader,
                                   SteeringLimiter, StepClock, empty_window_outputs, finite_values)
 from controllers.vehicle_params import VehicleParams
@@ -147,6 +152,9 @@ class BacksteppingController(Component):
         compiled = jit.for_this_component(compiled_step)
         self._step, self._constants = ((compiled.step, compiled.constants(constants)) if compiled is not None
                                        else (step_kernel.step, constants))
+        # the projection and the step both compiled: the step takes the feet from the projection's buffer
+        self._step_on_feet = compiled.step_on_feet if compiled is not None else None
+        self._feet, self._ls = np.zeros(FEET_SIZE), float(ls)     # a float: the compiled code's one signature
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """One control step at time t (see module docstring): step_values on the mapping."""
@@ -158,10 +166,17 @@ class BacksteppingController(Component):
         (x, y, psi, vx, vy, r), window = self.reader.read_values(values, t)
         if window is None:
             return self._empty_window
-        at_cg, preview = cg_and_preview(window, x, y, psi, self.gains.ls)
         try:
-            result = self._step(self._constants, dt, self.mu_hat, self.mu_hat_dot, self.steering.last,
-                                psi, vx, vy, r, at_cg, preview)
+            if window.compiled_feet is not None and self._step_on_feet is not None:
+                feet = self._feet
+                dx_cg, dy_cg, dx_preview, dy_preview = window.compiled_feet(x, y, psi, self._ls, feet)
+                result = self._step_on_feet(self._constants, feet, hypot(dx_cg, dy_cg), hypot(dx_preview, dy_preview),
+                                            x, y, dt, self.mu_hat, self.mu_hat_dot, self.steering.last,
+                                            psi, vx, vy, r)
+            else:
+                at_cg, preview = cg_and_preview(window, x, y, psi, self.gains.ls)
+                result = self._step(self._constants, dt, self.mu_hat, self.mu_hat_dot, self.steering.last,
+                                    psi, vx, vy, r, at_cg, preview)
         except step_kernel.SingularSteer as singular:
             raise singular_steer_error(singular) from None
         # result: the outputs up to V2, then command, mu_hat_dot, kept, v0, v1, a1x0, a1x1

@@ -5,15 +5,20 @@
 process: the compiled step against the interpreted one, compared by repr
 (which tells -0.0 from 0.0 and an int from a float), on built-in cases that
 reach every branch (each lateral law and target, both adaptation laws, the
-torque and steering limits, a foot beyond the window's end).
+torque and steering limits, a foot beyond the window's end), for `step` and
+for `step_on_feet` (the step on the compiled projection's buffer of the feet).
 """
 
 from __future__ import annotations
 
 import functools
+import math
+
+import numpy as np
 
 from controllers import jit
 from controllers.backstepping import step_kernel
+from controllers.road.projection import FEET_SIZE, finish
 
 # (feedforward, at_cg, robust) of the built-in cases
 _LAWS = ((0.0, 1.0, 0.0), (1.0, 1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 1.0), (1.0, 1.0, 1.0))
@@ -55,11 +60,34 @@ def _cases():
 
 
 def _disagreement(kernel) -> str:
-    """'' if kernel.step gives step_kernel.step's tuples bit for bit on _cases(), else the first case that does not."""
-    for constants, arguments in _cases():
+    """'' if kernel.step gives step_kernel.step's tuples bit for bit on _cases(), else the first case
+    that does not; likewise kernel.step_on_feet on those feet before projection.finish."""
+    feet = np.zeros(FEET_SIZE)
+    for number, (constants, arguments) in enumerate(_cases()):
         expected = step_kernel.step(constants, *arguments)
         got = kernel.step(kernel.constants(constants), *arguments)
         if repr(got) != repr(expected):
             return f"on {arguments} it gives {got}, the interpreted step {expected}"
+        x, y, at_cg, preview, norms = _unfinished(feet, arguments[8], arguments[9], number)
+        dt, mu_hat, mu_hat_dot, last_delta, psi, vx, vy, r = arguments[:8]
+        px, py = feet[24:26].tolist()
+        expected = step_kernel.step(constants, *arguments[:8], finish(at_cg, x, y), finish(preview, px, py))
+        got = kernel.step_on_feet(kernel.constants(constants), feet, *norms, x, y, dt, mu_hat, mu_hat_dot,
+                                  last_delta, psi, vx, vy, r)
+        if repr(got) != repr(expected):
+            return f"on the feet {at_cg}, {preview} step_on_feet gives {got}, the interpreted step {expected}"
     return ""
+
+
+def _unfinished(feet: np.ndarray, at_cg: tuple, preview: tuple, number: int) -> tuple:
+    """A case's two feet as hermite's foot fields in `feet` (projection.FEET_SIZE's layout), tangents and
+    points made from their fields: (x, y, CG fields, preview fields, math.hypot of both tangents)."""
+    x, y = at_cg[1] + 0.1 * at_cg[3], at_cg[2] - 0.3 * at_cg[4]
+    fields = []
+    for start, foot in ((0, at_cg), (12, preview)):
+        tangent = (math.cos(foot[4]) * (1.0 + 0.01 * number), math.sin(foot[4]) * (1.0 + 0.01 * number))
+        fields.append(foot[:3] + (foot[3] if foot[9] else 0.0,) + foot[4:10] + tangent)   # evaluate's offset: 0.0
+        feet[start:start + 12] = fields[-1]
+    feet[24], feet[25] = preview[1] + 0.2 * preview[3], preview[2] - 0.1 * preview[4]
+    return x, y, fields[0], fields[1], (math.hypot(*fields[0][10:]), math.hypot(*fields[1][10:]))
 

@@ -96,6 +96,10 @@ def validate_window(window: TrajectoryWindow, prefix: str = "ref") -> None:
                           f"{prefix}_s[{i + 1}] = {window.s[i + 1]}")
 
 
+# a compiled step's buffer of the two feet (projection_jit.cg_and_preview_into): the CG foot's 12
+# fields (hermite's foot fields: finish's 10 with the tangent dx, dy after), the preview foot's 12,
+# then the preview point's x, y
+FEET_SIZE = 26
 _FIELD_NAMES = frozenset(name for name, _, _ in FIELDS)   # x, y, psi, kappa, s, v, a
 _all = np.logical_and.reduce      # ndarray.all without its Python wrapper (once per window)
 
@@ -112,8 +116,9 @@ class PreparedWindow:
     such as a controller's CG and preview point while the window is the same.
 
     `compiled` is foot()'s compiled path for this window (compiled_kernel()
-    bound to the window's arrays) and `compiled_pair` cg_and_preview()'s, or
-    None for the interpreted one; the
+    bound to the window's arrays), `compiled_pair` cg_and_preview()'s and
+    `compiled_feet` the kernel's cg_and_preview_into (for a compiled step that
+    finishes the feet itself, see FEET_SIZE), or None for the interpreted one; the
     search state above (chords, reach, tracking slots) exists only on the
     interpreted path.
 
@@ -134,13 +139,13 @@ class PreparedWindow:
         if compiled is None:
             compiled = jit.is_loaded(compiled_kernel)
         kernel = compiled_kernel() if compiled else None
-        self.compiled = self.compiled_pair = None
+        self.compiled = self.compiled_pair = self.compiled_feet = None
         self.chords = matrix.shape[1] - 1
         self._segments: list[tuple | None] = [None] * self.chords
         if kernel is not None:      # the field lists only when asked for (__getattr__): not per tick
             if packed is None:      # pack takes a writable C-ordered array: its one compiled signature
                 packed = kernel.pack(np.array(matrix, dtype=np.float64, order="C"))
-            self.compiled, self.compiled_pair = _bind(kernel, packed)
+            self.compiled, self.compiled_pair, self.compiled_feet = _bind(kernel, packed)
             self._matrix = matrix
             return
         self.x, self.y, self.psi, self.kappa, self.s, self.v, self.a = matrix.tolist()
@@ -344,9 +349,11 @@ class PreparedWindow:
         return seg
 
 
-def _bind(kernel, packed: np.ndarray) -> tuple[functools.partial, functools.partial]:
-    """kernel's foot_fields and cg_and_preview_fields on a packed window (kernel.pack's, once for both)."""
-    return functools.partial(kernel.foot_fields, packed), functools.partial(kernel.cg_and_preview_fields, packed)
+def _bind(kernel, packed: np.ndarray) -> tuple[functools.partial, functools.partial, functools.partial]:
+    """kernel's foot_fields, cg_and_preview_fields and cg_and_preview_into on a packed window
+    (kernel.pack's, once for all three)."""
+    return (functools.partial(kernel.foot_fields, packed), functools.partial(kernel.cg_and_preview_fields, packed),
+            functools.partial(kernel.cg_and_preview_into, packed))
 
 
 @functools.cache
@@ -387,7 +394,8 @@ def _disagreement(kernel) -> str:
             return f"checked_pack accepts a window with {value} at row {row}, point {column}"
     if kernel.checked_pack(np.array(matrix[:6])).shape[1]:
         return "checked_pack accepts a window of 6 fields"
-    interpreted, (bound, pair) = PreparedWindow(matrix, compiled=False), _bind(kernel, packed)
+    interpreted, (bound, pair, into) = PreparedWindow(matrix, compiled=False), _bind(kernel, packed)
+    feet = np.zeros(FEET_SIZE)
     for px in np.linspace(-20.0, 130.0, 31).tolist():
         for py in np.linspace(-60.0, 40.0, 21).tolist():
             expected, got = foot(interpreted, px, py), finish(bound(px, py), px, py)
@@ -398,6 +406,11 @@ def _disagreement(kernel) -> str:
                                                         py + 6.0 * math.sin(0.7)))
             if repr((finish(cg, px, py), finish(preview, ax, ay))) != repr(expected):
                 return f"at ({px}, {py}) cg_and_preview disagrees with two foot() calls"
+            dx_cg, dy_cg, dx_preview, dy_preview = into(px, py, 0.7, 6.0, feet)
+            got = (kernel.finished(feet, 0, px, py, math.hypot(dx_cg, dy_cg)),
+                   kernel.finished(feet, 12, feet[24], feet[25], math.hypot(dx_preview, dy_preview)))
+            if repr(got) != repr(expected):
+                return f"at ({px}, {py}) cg_and_preview_into and finished disagree with two foot() calls"
     return ""
 
 

@@ -117,8 +117,42 @@ def cg_and_preview_fields(window, x, y, psi, ls):
     return foot_fields(window, x, y), foot_fields(window, px, py), px, py
 
 
+@_compile
+def cg_and_preview_into(window, x, y, psi, ls, feet):
+    """cg_and_preview_fields written into `feet` (FEET_SIZE float64s, the layout of
+    controllers.road.projection.FEET_SIZE); returns the two feet's tangents (dx, dy of the CG's,
+    then of the preview point's), whose math.hypot the caller takes in the interpreter for
+    `finished`. A float crosses back per tangent instead of two tuples of foot fields."""
+    px = x + ls * math.cos(psi)
+    py = y + ls * math.sin(psi)
+    at_cg = foot_fields(window, x, y)
+    preview = foot_fields(window, px, py)
+    feet[0], feet[1], feet[2], feet[3], feet[4], feet[5] = at_cg[0], at_cg[1], at_cg[2], at_cg[3], at_cg[4], at_cg[5]
+    feet[6], feet[7], feet[8], feet[9], feet[10], feet[11] = at_cg[6], at_cg[7], at_cg[8], at_cg[9], at_cg[10], at_cg[11]
+    feet[12], feet[13], feet[14], feet[15], feet[16], feet[17] = (preview[0], preview[1], preview[2], preview[3],
+                                                                   preview[4], preview[5])
+    feet[18], feet[19], feet[20], feet[21], feet[22], feet[23] = (preview[6], preview[7], preview[8], preview[9],
+                                                                   preview[10], preview[11])
+    feet[24], feet[25] = px, py
+    return at_cg[10], at_cg[11], preview[10], preview[11]
+
+
+@_compile
+def finished(feet, start, px, py, norm):
+    """controllers.road.projection.finish of the foot fields at feet[start:start + 12] for the point
+    (px, py), given norm = math.hypot(dx, dy) of their tangent (taken in the interpreter: CPython's
+    hypot is not libm's). The same operations in the same order as finish: the same bits."""
+    side = int(feet[start + 9])
+    offset = feet[start + 3]
+    if side == 0:
+        dx, dy = feet[start + 10], feet[start + 11]
+        offset = (dx * (py - feet[start + 2]) - dy * (px - feet[start + 1])) / max(norm, 1e-300)
+    return (feet[start], feet[start + 1], feet[start + 2], offset, feet[start + 4], feet[start + 5],
+            feet[start + 6], feet[start + 7], feet[start + 8], side)
+
+
 def recompile() -> None:
     """Compile every function here afresh (and replace their cache entries), hermite's first."""
     for function in (_segment, _refine, _evaluate, _beyond, pack, checked_pack, foot_fields,
-                     cg_and_preview_fields):
+                     cg_and_preview_fields, cg_and_preview_into, finished):
         function.recompile()

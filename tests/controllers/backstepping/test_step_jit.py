@@ -8,6 +8,7 @@ at first use and falls back to the interpreted step when they disagree.
 
 from __future__ import annotations
 
+import math
 import sys
 
 import numpy as np
@@ -16,6 +17,7 @@ import pytest
 from controllers.backstepping import step_kernel, step_path
 from controllers.backstepping.component import BacksteppingController
 from controllers.linear_plant import LinearPlant
+from controllers.road.projection import FEET_SIZE, finish
 from controllers.vehicle_params import VehicleParams
 from cosim.component import ComponentError
 from tests.helpers.closed_loop import CirclePath, make_window, run_closed_loop
@@ -65,6 +67,57 @@ def test_compiled_step_equals_the_interpreted_one_bit_for_bit(settings, jit_mode
         reached["kept"] += kept == 1.0 and delta == command
         reached["below v_min"] += arguments[5] < controller.gains.v_min
     assert all(count > 30 for count in reached.values()), reached
+
+
+def _unfinished(rng: np.random.Generator, foot: tuple) -> tuple:
+    """Foot fields as the projection leaves them for finish: the offset 0.0 unless beyond an end, a
+    tangent now and then shorter than finish's 1e-300 floor."""
+    tangent = (rng.normal(0, 1e-305), 0.0) if rng.uniform() < 0.02 else tuple(rng.normal(0, 3, 2).tolist())
+    return foot[:3] + (foot[3] if foot[9] else 0.0,) + foot[4:10] + tangent
+
+
+@pytest.mark.parametrize("settings", VARIANTS, ids=lambda s: "-".join(str(v) for v in s.values()))
+def test_the_step_on_the_projections_buffer_equals_the_interpreted_step_on_its_feet(settings, jit_mode):
+    jit_mode("on")
+    controller = BacksteppingController(**settings)
+    compiled = step_path.compiled_step()
+    assert controller._step_on_feet is compiled.step_on_feet
+    constants = controller.lateral.constants + tuple(controller._constants[step_kernel.LATERAL_SIZE:].tolist())
+    rng, feet = np.random.default_rng(29), np.full(FEET_SIZE, np.nan)
+    floored = beyond = 0
+    for _ in range(2000):
+        at_cg, preview = (_unfinished(rng, foot) for foot in _feet(rng))
+        x, y, preview_x, preview_y = rng.uniform(-60, 60, 4).tolist()
+        feet[:12], feet[12:24], feet[24:] = at_cg, preview, (preview_x, preview_y)
+        plant = (float(rng.uniform(-7, 7)), float(rng.uniform(0, 30)), float(rng.normal(0, 1)),
+                 float(rng.normal(0, 0.4)))
+        state = (0.01, float(rng.uniform(0.05, 1.3)), float(rng.normal(0, 1)), float(rng.uniform(-0.55, 0.55)))
+        expected = step_kernel.step(constants, *state, *plant, finish(at_cg, x, y),
+                                    finish(preview, preview_x, preview_y))
+        got = compiled.step_on_feet(controller._constants, feet, math.hypot(*at_cg[10:]),
+                                    math.hypot(*preview[10:]), x, y, *state, *plant)
+        assert repr(got) == repr(expected), (at_cg, preview, x, y, state, plant)
+        floored += math.hypot(*at_cg[10:]) < 1e-300
+        beyond += preview[9] != 0
+    assert floored > 10 and beyond > 300
+
+
+def test_the_controller_steps_on_the_projections_buffer_when_both_are_compiled(jit_mode):
+    def run(calls: list) -> dict[str, bytes]:
+        controller = BacksteppingController(lateral_law="feedforward", adaptive=True, mu0=0.6)
+        if controller._step_on_feet is not None:
+            exact = controller._step_on_feet
+            controller._step_on_feet = lambda *arguments: calls.append(1) or exact(*arguments)
+        plant = LinearPlant(VehicleParams(), substeps=2, vx0=9.0, y0=0.4, mu=0.9)
+        record = run_closed_loop(controller, plant, CirclePath(40.0), 5.0)
+        return {name: values.tobytes() for name, values in record.items()}
+
+    jit_mode("off")
+    interpreted_calls, compiled_calls = [], []
+    interpreted = run(interpreted_calls)
+    jit_mode("on")
+    assert run(compiled_calls) == interpreted
+    assert interpreted_calls == [] and len(compiled_calls) == 501      # every step, tick 0 (initialize) too
 
 
 @pytest.mark.parametrize("settings", VARIANTS[3:], ids=["faithful-robust", "feedforward-robust"])

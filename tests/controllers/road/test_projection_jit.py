@@ -23,7 +23,7 @@ from controllers.tracking import InputReader
 from controllers.trajectory import FIELDS
 from cosim.component import ComponentError
 from controllers.linear_plant import LinearPlant
-from controllers.road.projection import PreparedWindow, cg_and_preview, foot, point_at
+from controllers.road.projection import FEET_SIZE, PreparedWindow, cg_and_preview, compiled_kernel, foot, point_at
 from controllers.vehicle_params import VehicleParams
 from tests.controllers.backstepping.test_fast_paths import random_windows
 from tests.helpers.closed_loop import CirclePath, make_window, run_closed_loop
@@ -116,10 +116,21 @@ def test_compiled_foot_equals_the_interpreted_one_bit_for_bit(jit_mode):
             assert same(foot(compiled, px, py, 0), expected), (px, py)
             assert same(foot(compiled, px, py), foot(interpreted, px, py)), (px, py)
             psi, ls = float(rng.uniform(-4.0, 4.0)), float(rng.uniform(0.5, 15.0))
-            assert same(cg_and_preview(compiled, px, py, psi, ls), cg_and_preview(interpreted, px, py, psi, ls))
+            pair = cg_and_preview(interpreted, px, py, psi, ls)
+            assert same(cg_and_preview(compiled, px, py, psi, ls), pair)
+            assert same(_finished_feet(compiled, px, py, psi, ls), pair), (px, py, psi, ls)
             compared += 1
             beyond += expected[9] != 0
     assert compared > 5000 and beyond > 200        # both ends' extrapolation reached
+
+
+def _finished_feet(window: PreparedWindow, x: float, y: float, psi: float, ls: float) -> tuple:
+    """cg_and_preview as a compiled step takes it: cg_and_preview_into's buffer, then finished on it."""
+    kernel, feet = compiled_kernel(), np.full(FEET_SIZE, np.nan)
+    dx_cg, dy_cg, dx_preview, dy_preview = window.compiled_feet(x, y, psi, ls, feet)
+    preview_x, preview_y = feet[24:26].tolist()
+    return (kernel.finished(feet, 0, x, y, math.hypot(dx_cg, dy_cg)),
+            kernel.finished(feet, 12, preview_x, preview_y, math.hypot(dx_preview, dy_preview)))
 
 
 def test_backstepping_closed_loop_is_the_same_on_both_paths(jit_mode):
