@@ -32,7 +32,8 @@ Run: .venv/bin/python benchmarks/bench_closed_loop.py [--seconds 20] [--repeats 
      [--paths interpreted|compiled|both] [--record-alternative]
 
 `--paths` picks the controllers' per-tick paths (the window projection, controllers.road.projection,
-and the backstepping step, controllers.backstepping.step_kernel): interpreted, compiled by numba
+the backstepping step, controllers.backstepping.step_kernel, and the planner's road search,
+controllers.road.compiled_path): interpreted, compiled by numba
 (the `jit` extra; COSIM_JIT=on), or both in alternating runs, each with its own table (the default
 when numba is installed). Both give the same bits.
 
@@ -70,7 +71,7 @@ from cosim.engine.wiring import resolve_wiring  # noqa: E402
 from cosim.execution import fmu_hosting  # noqa: E402
 from controllers import jit  # noqa: E402
 from controllers.backstepping import step_path  # noqa: E402
-from controllers.road import projection  # noqa: E402
+from controllers.road import compiled_path, projection  # noqa: E402
 
 TARGET_RTF = 500.0
 PATHS = {"interpreted": ("interpreted",), "compiled": ("compiled",), "both": ("interpreted", "compiled")}
@@ -306,9 +307,10 @@ def main() -> None:
 
 
 def use_paths(mode: str) -> None:
-    """The controllers' paths for the next runs: 'interpreted' or 'compiled' (numba: projection and step)."""
+    """The controllers' paths for the next runs: 'interpreted' or 'compiled' (numba: projection, step
+    and the planner's road search)."""
     os.environ[jit.JIT_VARIABLE] = "off" if mode == "interpreted" else "on"
-    for gate in (projection.compiled_kernel, step_path.compiled_step):
+    for gate in (projection.compiled_kernel, step_path.compiled_step, compiled_path.compiled_geometry):
         gate.cache_clear()
         gate()        # imports and loads the compiled code now, not inside a timed run
 

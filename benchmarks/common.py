@@ -58,7 +58,9 @@ def compiled_as_in_a_long_run() -> str:
     with auto, a component process built for a run of fewer than
     `controllers.jit.SHORT_RUN_STEPS` steps (every quick setting here) would run
     interpreted, and a master timed against another implementation or against itself
-    at two durations would then not run the same code. Child processes inherit it.
+    at two durations would then not run the same code. Child processes inherit it. The
+    planner's road search is compiled too (auto would compile it from
+    `controllers.road.compiled_path.SHORT_RUN_STEPS` planner steps).
     """
     import importlib.util
 

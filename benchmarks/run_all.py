@@ -37,6 +37,7 @@ sys.path.insert(0, str(ROOT))
 from benchmarks import run_all_rows  # noqa: E402
 from benchmarks.common import RESULT_PREFIX, load_average, speed_anchor  # noqa: E402
 from controllers.jit import SHORT_RUN_STEPS  # noqa: E402
+from controllers.road.compiled_path import SHORT_RUN_STEPS as ROAD_SEARCH_STEPS  # noqa: E402
 
 BEGIN = "<!-- perf-table:begin -->"
 END = "<!-- perf-table:end -->"
@@ -172,15 +173,17 @@ def machine_line() -> str:
 
 
 def projection_line() -> str:
-    """Which paths (window projection, backstepping step) the controllers of these runs use (COSIM_JIT, numba)."""
+    """Which paths (window projection, backstepping step, road search) the controllers of these runs use
+    (COSIM_JIT, numba)."""
     mode = os.environ.get("COSIM_JIT", "auto")
     found = importlib.util.find_spec("numba") is not None
     compiled = mode.strip().lower() in ("on", "1", "yes", "true") or (found and mode.strip().lower() in ("auto", ""))
     how = "compiled (numba installed)" if compiled else ("interpreted (numba not installed)" if not found
                                                          else "interpreted")
-    return (f"controllers' projection and step {how}, COSIM_JIT={mode} (bench_closed_loop measures both; "
-            f"the Zenoh, memory and mosaik loops run with on, as a run of "
-            f"{SHORT_RUN_STEPS} steps or more does under auto)")
+    return (f"controllers' projection, step and road search {how}, COSIM_JIT={mode} (bench_closed_loop "
+            f"measures both; the Zenoh, memory and mosaik loops run with on, as a run of "
+            f"{SHORT_RUN_STEPS} steps or more does under auto, and the planner's road search too, "
+            f"which auto compiles from {ROAD_SEARCH_STEPS} planner steps)")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

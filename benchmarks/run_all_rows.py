@@ -67,8 +67,8 @@ def closed_loop(out: str) -> list[dict]:
             if found:
                 parts.append(f"{name} {float(found.group(1)):.1f}")
         rtf = float(total.group(2))
-        how = ("compiled projection and step (numba)" if mode == "compiled"
-               else "interpreted projection and step")
+        how = ("compiled projection, step and road search (numba)" if mode == "compiled"
+               else "interpreted projection, step and road search")
         rows.append(table_row(f"in-process closed loop (Vehicle8DOF + backstepping + planner), 10 ms ticks, {how}",
                               f"{float(total.group(1)):.1f} µs/tick = {rtf:.0f}x real time ({', '.join(parts)} µs)",
                               ">= 500x", rtf >= 500))
@@ -123,8 +123,8 @@ def startup(out: str) -> list[dict]:
     """bench_startup: `cosim run` to tick 0."""
     rows = []
     labels = {"zenoh": "zenoh", "inproc": "inproc",
-              "zenoh-compiled": "zenoh, controller compiled (COSIM_JIT=on, as a run of 15,000 steps "
-                                "or more such as satory_nominal loads it)"}
+              "zenoh-compiled": "zenoh, controller compiled (a run of 15,000 steps, COSIM_JIT=auto, "
+                                "as satory_nominal loads it)"}
     for transport, label in labels.items():
         found = _find(rf"^{re.escape(transport)}\s+{FLOAT}\s+{FLOAT}\s+{FLOAT}\s+(NOT met|met)\s*$", out)
         if found:

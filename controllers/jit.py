@@ -150,14 +150,15 @@ def is_loaded(gate: Callable[[], Any]) -> bool:
     return gate.cache_info().currsize > 0  # type: ignore[attr-defined]
 
 
-def for_this_component(gate: Callable[[], Any]) -> Any | None:
+def for_this_component(gate: Callable[[], Any], short_run_steps: int = SHORT_RUN_STEPS) -> Any | None:
     """`gate()` (a compiled part's loader, cached by functools, which calls `load_compiled`),
     or None for the interpreted path when COSIM_JIT is auto, the part is not loaded in this
-    process yet and the component being built will step fewer than SHORT_RUN_STEPS times
-    (`cosim.component.expected_steps`; unknown: compiled)."""
+    process yet and the component being built will step fewer than `short_run_steps` times
+    (`cosim.component.expected_steps`; unknown: compiled). The default suits the
+    controllers' parts; a part that saves less per step passes a larger number."""
     if not is_loaded(gate) and jit_mode()[0] == "auto":
         steps = expected_steps()
-        if steps is not None and steps < SHORT_RUN_STEPS:
+        if steps is not None and steps < short_run_steps:
             return None
     return gate()
 

@@ -4,7 +4,8 @@ At initialize it projects the vehicle on the road, plans the manoeuvre's two
 options (controllers.planning.manoeuvres) over the whole route and gives each a
 low-energy speed profile along its own arc length (controllers.planning.speed_profile).
 At every step (10 Hz by default) it tracks the vehicle's progress along the
-road (warm-started projection, unwrapped over laps of a closed road) and
+road (warm-started projection, unwrapped over laps of a closed road; its Newton
+iteration compiled by numba for a long run, controllers.road.compiled_path) and
 samples both options into fixed-size windows (controllers.trajectory): the
 recommended one on the `ref_*` ports, the alternative on `alt_*`. When the
 run reads no `alt_*` output (`use_outputs`: not connected, not recorded), the
@@ -53,6 +54,7 @@ from collections.abc import Mapping, Set
 import numpy as np
 
 from cosim.component import Component, ComponentError, ModelReference, Port, Value, frozen_copy
+from controllers.road import compiled_path
 from controllers.road.geometry import SpecError, spec_number
 from controllers.planning.following import FOLLOWING_OUTPUTS, LEAD_INPUTS, Follower
 from controllers.spec import MAX_LENGTH, MAX_REACH
@@ -219,7 +221,7 @@ class Planner(Component):
             first = sorted(unknown)[0]  # named first, so the scenario's line of it is shown
             raise ComponentError(f"{first}: unknown parameters {sorted(unknown)} (known: {', '.join(known)})")
         try:
-            self.road = road_from_spec(road)
+            self.road = compiled_path.for_this_component(road_from_spec(road))    # its per-step search (COSIM_JIT)
             self.lane = self.road.check_lane(lane, "lane")
             self.limits = SpeedLimits.from_spec(speed)
             self.manoeuvre_spec = manoeuvre

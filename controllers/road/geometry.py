@@ -21,6 +21,8 @@ degrees; everything else SI. `SpecError` and `spec_number` live in
 from __future__ import annotations
 
 import bisect
+import copy
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -34,6 +36,7 @@ _GL_T, _GL_W = np.polynomial.legendre.leggauss(10)
 _GL_PAIRS = tuple(zip(_GL_T.tolist(), _GL_W.tolist()))
 # _point's form of the pairs: 0.5 * (t_n + 1.0), the node's fraction of the interval, and w_n
 _GL_FRACTIONS = tuple((0.5 * (tn + 1.0), wn) for tn, wn in _GL_PAIRS)
+_GL_FRACTION_ARRAYS = tuple(np.array(column) for column in zip(*_GL_FRACTIONS))    # the compiled path's
 MAX_TURN = 0.2          # rad of heading change per interval
 MAX_INTERVAL = 2.0      # m per interval: also the coarse grid of projections
 CLOSE_TOL = 1e-3        # m (and rad) a closed path may miss its start by
@@ -104,6 +107,7 @@ class Path:
         self._lists = [a.tolist() for a in (self.s, self._len, self.psi, self.k0, self._dk, self.x,
                                             self._ex, self.y, self._ey, self._epsi)]
         self._length = float(self.s[-1])
+        self._compiled: tuple | None = None     # (newton, point): with_compiled_search
 
     @property
     def length(self) -> float:
@@ -188,21 +192,42 @@ class Path:
         """
         if not (math.isfinite(px) and math.isfinite(py)):
             raise SpecError(f"cannot project non-finite point ({px}, {py})")
+        # compiled: floats in (the interpreted path keeps numpy scalars' types through its arithmetic)
+        newton, point = (self._compiled if self._compiled is not None and type(px) is float
+                         and type(py) is float else (self._newton, self._point))
         s = None
         if s_guess is not None:                       # tracking: Newton from the previous foot point
-            s = self._newton(px, py, float(s_guess))
+            s = newton(px, py, float(s_guess))
             if s is not None and abs(self._gap(s, s_guess)) > search:
                 s = None
         if s is None:
             idx = self._candidates(s_guess, search)
             k = idx[np.argmin((self.x[idx] - px) ** 2 + (self.y[idx] - py) ** 2)]
-            s = self._newton(px, py, float(self.s[k]))
+            s = newton(px, py, float(self.s[k]))
             s = float(self.s[k]) if s is None else s
-        x, y, psi, kap = self._point(s)
+        x, y, psi, kap = point(s)
         dx, dy = px - x, py - y
         herr = float(wrap_angle(heading - psi)) if heading is not None else 0.0
         return Projection(s=float(self.wrap(s)), lateral=-dx * math.sin(psi) + dy * math.cos(psi),
                           distance=math.hypot(dx, dy), psi=psi, kappa=kap, heading_error=herr)
+
+    def with_compiled_search(self, kernel) -> "Path":
+        """A copy of this path (sharing its arrays) whose project() runs the compiled Newton
+        iteration and point evaluation of `kernel` (compiled_path.compiled_geometry()'s module:
+        the bits of _newton and _point) for float coordinates."""
+        knots = np.zeros((len(self._lists), self.s.size))     # the interval rows one shorter: 0 last
+        for row, values in enumerate(self._lists):
+            knots[row, :len(values)] = values
+        shape = (knots, self.closed, self._length, _GL_FRACTION_ARRAYS[0], _GL_FRACTION_ARRAYS[1])
+        newton = functools.partial(kernel.newton, *shape, MAX_INTERVAL)
+
+        def compiled_newton(px: float, py: float, s: float) -> float | None:
+            foot = newton(px, py, s)
+            return None if foot != foot else foot       # NaN: no convergence, _newton's None
+
+        path = copy.copy(self)
+        path._compiled = compiled_newton, functools.partial(kernel.point, *shape)
+        return path
 
     def _gap(self, s, s_ref: float):
         """s - s_ref (float or array), the short way round on a closed path."""

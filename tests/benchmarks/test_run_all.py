@@ -136,10 +136,10 @@ CLOSED_LOOP_OUTPUT = ("backstepping + planner (lane_keeping) + Vehicle8DOF (plat
 
 def test_the_closed_loop_reader_gives_one_row_per_projection():
     interpreted, compiled = run_all_rows.closed_loop(CLOSED_LOOP_OUTPUT)
-    assert interpreted["measure"].endswith("interpreted projection and step") and interpreted["met"] is False
+    assert interpreted["measure"].endswith("interpreted projection, step and road search") and interpreted["met"] is False
     assert interpreted["figure"] == ("43.0 µs/tick = 232x real time "
                                      "(controller 25.8, planner 7.0, master 5.8, FMU 5.5 µs)")
-    assert compiled["measure"].endswith("compiled projection and step (numba)") and compiled["met"] is True
+    assert compiled["measure"].endswith("compiled projection, step and road search (numba)") and compiled["met"] is True
 
 
 FMU_STEP_OUTPUT = (

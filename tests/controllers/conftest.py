@@ -1,4 +1,4 @@
-"""Fixtures of the controllers' tests: the compiled paths (projection, backstepping step) switched on or off."""
+"""Fixtures of the controllers' tests: the compiled paths (projection, backstepping step, road search) on or off."""
 
 from __future__ import annotations
 
@@ -6,17 +6,19 @@ import pytest
 
 from controllers import jit
 from controllers.backstepping import step_path
-from controllers.road import projection
+from controllers.road import compiled_path, projection
 
 
 @pytest.fixture
 def jit_mode(monkeypatch):
-    """set_mode(mode): COSIM_JIT = mode for one test, both gates asked afresh; returns the projection's answer."""
+    """set_mode(mode): COSIM_JIT = mode for one test, every gate asked afresh; returns the projection's answer."""
+    gates = (projection.compiled_kernel, step_path.compiled_step, compiled_path.compiled_geometry)
+
     def set_mode(mode: str):
         monkeypatch.setenv(jit.JIT_VARIABLE, mode)
-        projection.compiled_kernel.cache_clear()
-        step_path.compiled_step.cache_clear()
+        for gate in gates:
+            gate.cache_clear()
         return projection.compiled_kernel()
     yield set_mode
-    projection.compiled_kernel.cache_clear()
-    step_path.compiled_step.cache_clear()
+    for gate in gates:
+        gate.cache_clear()
