@@ -1,10 +1,11 @@
 """COSIM_JIT: whether the controllers' per-tick arithmetic runs compiled by numba, and the gate it passes.
 
-Two parts of the controllers' tick have a compiled twin made by numba from
-their own Python source (the `jit` extra): the window projection
-(controllers.road.projection_jit) and the backstepping step
-(controllers.backstepping.step_jit). The same source runs interpreted when
-numba is absent or COSIM_JIT says off, and both paths give the same bits.
+Three parts of the controllers' tick have a compiled twin made by numba (the
+`jit` extra): the window projection (controllers.road.projection_jit) and the
+backstepping step (controllers.backstepping.step_jit), from their own Python
+source, and the planner's road search (controllers.road.geometry_jit, Path's
+Newton iteration written out with the same operations). The interpreted path runs
+when numba is absent or COSIM_JIT says off, and both paths give the same bits.
 
 COSIM_JIT = auto (default): compiled when numba is installed, except for a
 component built for a short run (`for_this_component`); off: never; on:

@@ -20,6 +20,7 @@ from controllers.linear_plant import LinearPlant
 from controllers.road.projection import FEET_SIZE, finish
 from controllers.vehicle_params import VehicleParams
 from cosim.component import ComponentError
+from tests.helpers.jit_gates import one_bit_off
 from tests.helpers.closed_loop import CirclePath, make_window, run_closed_loop
 
 pytest.importorskip("numba")
@@ -42,13 +43,18 @@ def _feet(rng: np.random.Generator) -> tuple[tuple, tuple]:
     return foot(0), foot(int(rng.choice([-1, 0, 0, 0, 1])))
 
 
-@pytest.mark.parametrize("settings", VARIANTS, ids=lambda s: "-".join(str(v) for v in s.values()))
-def test_compiled_step_equals_the_interpreted_one_bit_for_bit(settings, jit_mode):
+def _compiled_controller(settings: dict, jit_mode) -> tuple:
+    """(controller with `settings` under COSIM_JIT=on, the compiled step module, the interpreted step's constants)."""
     jit_mode("on")
     controller = BacksteppingController(**settings)
-    compiled = step_path.compiled_step()
-    assert controller._step is compiled.step
     constants = controller.lateral.constants + tuple(controller._constants[step_kernel.LATERAL_SIZE:].tolist())
+    return controller, step_path.compiled_step(), constants
+
+
+@pytest.mark.parametrize("settings", VARIANTS, ids=lambda s: "-".join(str(v) for v in s.values()))
+def test_compiled_step_equals_the_interpreted_one_bit_for_bit(settings, jit_mode):
+    controller, compiled, constants = _compiled_controller(settings, jit_mode)
+    assert controller._step is compiled.step
     rng = np.random.default_rng(17)
     reached = {"rate limited": 0, "angle limited": 0, "torque clipped": 0, "kept": 0, "below v_min": 0}
     for _ in range(3000):
@@ -78,11 +84,8 @@ def _unfinished(rng: np.random.Generator, foot: tuple) -> tuple:
 
 @pytest.mark.parametrize("settings", VARIANTS, ids=lambda s: "-".join(str(v) for v in s.values()))
 def test_the_step_on_the_projections_buffer_equals_the_interpreted_step_on_its_feet(settings, jit_mode):
-    jit_mode("on")
-    controller = BacksteppingController(**settings)
-    compiled = step_path.compiled_step()
+    controller, compiled, constants = _compiled_controller(settings, jit_mode)
     assert controller._step_on_feet is compiled.step_on_feet
-    constants = controller.lateral.constants + tuple(controller._constants[step_kernel.LATERAL_SIZE:].tolist())
     rng, feet = np.random.default_rng(29), np.full(FEET_SIZE, np.nan)
     floored = beyond = 0
     for _ in range(2000):
@@ -173,15 +176,7 @@ def test_on_without_numba_is_a_clear_error(jit_mode, monkeypatch):
 def _disagreeing(monkeypatch) -> list[str]:
     """step_jit.step made one bit off in its first output; its recompile() recorded, not run."""
     from controllers.backstepping import step_jit
-    exact, calls = step_jit.step, []
-
-    def off_by_one_bit(*arguments):
-        values = exact(*arguments)
-        return (float(np.nextafter(values[0], np.inf)), *values[1:])
-
-    monkeypatch.setattr(step_jit, "step", off_by_one_bit)
-    monkeypatch.setattr(step_jit, "recompile", lambda: calls.append("recompile"))
-    return calls
+    return one_bit_off(monkeypatch, step_jit, "step")
 
 
 def test_a_step_that_disagrees_is_compiled_afresh_once_then_not_used(jit_mode, monkeypatch):

@@ -19,6 +19,7 @@ from cosim.component import constructing_for
 from controllers.planning import Planner
 from controllers.road import compiled_path
 from controllers.road.geometry import Path
+from tests.helpers.jit_gates import one_bit_off
 
 numba = pytest.importorskip("numba")
 
@@ -120,23 +121,11 @@ def test_auto_leaves_the_compiled_search_out_of_a_short_run_only(jit_mode):
     assert short.road.reference._compiled is None       # the builder's shared road is not changed
 
 
-def _disagreeing(monkeypatch) -> list[str]:
-    """geometry_jit.point made one bit off in x; its recompile() recorded, not run. Returns the record."""
-    from controllers.road import geometry_jit
-    exact, calls = geometry_jit.point, []
-
-    def off_by_one_bit(*arguments):
-        x, *rest = exact(*arguments)
-        return (float(np.nextafter(x, np.inf)), *rest)
-
-    monkeypatch.setattr(geometry_jit, "point", off_by_one_bit)
-    monkeypatch.setattr(geometry_jit, "recompile", lambda: calls.append("recompile"))
-    return calls
-
-
 def test_a_search_that_disagrees_is_compiled_afresh_once_then_not_used(jit_mode, monkeypatch):
     jit_mode("off")
-    calls = _disagreeing(monkeypatch)
+    from controllers.road import geometry_jit
+
+    calls = one_bit_off(monkeypatch, geometry_jit, "point")
     monkeypatch.setenv("COSIM_JIT", "auto")
     compiled_path.compiled_geometry.cache_clear()
     with pytest.warns(RuntimeWarning, match=r"the compiled road projection is not used: at s = -12.0 it gives"):

@@ -26,6 +26,7 @@ from controllers.linear_plant import LinearPlant
 from controllers.road.projection import FEET_SIZE, PreparedWindow, cg_and_preview, compiled_kernel, foot, point_at
 from controllers.vehicle_params import VehicleParams
 from tests.controllers.backstepping.test_fast_paths import random_windows
+from tests.helpers.jit_gates import one_bit_off
 from tests.helpers.closed_loop import CirclePath, make_window, run_closed_loop
 
 numba = pytest.importorskip("numba")
@@ -182,15 +183,7 @@ def test_an_unknown_mode_names_the_variable_and_value(jit_mode):
 def _disagreeing(monkeypatch) -> list[str]:
     """projection_jit.foot_fields made one bit off; its recompile() recorded, not run. Returns the record."""
     from controllers.road import projection_jit
-    exact, calls = projection_jit.foot_fields, []
-
-    def off_by_one_bit(window, px, py):
-        fields = exact(window, px, py)
-        return (float(np.nextafter(fields[0], np.inf)), *fields[1:])
-
-    monkeypatch.setattr(projection_jit, "foot_fields", off_by_one_bit)
-    monkeypatch.setattr(projection_jit, "recompile", lambda: calls.append("recompile"))
-    return calls
+    return one_bit_off(monkeypatch, projection_jit, "foot_fields")
 
 
 def test_a_kernel_that_disagrees_is_compiled_afresh_once_then_not_used(jit_mode, monkeypatch):

@@ -1,0 +1,21 @@
+"""Test support for the compiled parts' gates (controllers.jit.load_compiled): a kernel made to disagree."""
+
+from __future__ import annotations
+
+import types
+
+import numpy as np
+
+
+def one_bit_off(monkeypatch, kernel: types.ModuleType, name: str) -> list[str]:
+    """Make `kernel.<name>` return its first value one bit higher, and record (not run) the kernel's
+    recompile(): the gate's check must then find the difference. Returns the record of recompiles."""
+    exact, calls = getattr(kernel, name), []
+
+    def off_by_one_bit(*arguments):
+        first, *rest = exact(*arguments)
+        return (float(np.nextafter(first, np.inf)), *rest)
+
+    monkeypatch.setattr(kernel, name, off_by_one_bit)
+    monkeypatch.setattr(kernel, "recompile", lambda: calls.append("recompile"))
+    return calls
