@@ -39,7 +39,7 @@ import numpy as np
 from cosim.errors import ComponentFailure, StopRequested
 from cosim.engine.crumb import CALL_START, CALL_STEP, CALL_STOP, crumb_code
 from cosim.engine.hosting import HostedComponent
-from cosim.engine.movers import FrozenArrays, input_builder, output_reader, values_picker
+from cosim.engine.movers import FrozenArrays, block_writer, input_builder, output_reader, values_picker
 from cosim.engine.schedule import step_order
 from cosim.engine.signals import ComponentSlots, SignalLayout, build_layout, transformed
 from cosim.engine.values import lane_result_problem, value_problem
@@ -86,6 +86,7 @@ class _Plan:
         # a host that vouches for its lane's results (a list of as many Python floats as outputs)
         self.lane_exact = bool(getattr(self.hosted, "values_exact", False))
         self.out_block = _array_block(self.slots.out_arrays)
+        self.write_arrays = block_writer(self.slots.out_arrays)   # None: port by port
 
 
 class Master:
@@ -313,15 +314,19 @@ class Master:
         (`FrozenArrays`); a rejected output fails the run (the store is not read again).
         """
         arrays, frozen = self.arrays, self._frozen
-        for name, off, size in plan.slots.out_arrays:
-            try:
-                value = outputs[name]
-                if getattr(value, "shape", None) != (size,) and np.shape(value) != (size,):
-                    raise ValueError(name)
-                arrays[off:off + size] = value
-            except Exception:
-                raise _diagnose(plan, outputs, k, t) from None
-            frozen.pop(off, None)
+        if plan.write_arrays is not None and plan.write_arrays(arrays, outputs):
+            for _, off, _ in plan.slots.out_arrays:
+                frozen.pop(off, None)
+        else:
+            for name, off, size in plan.slots.out_arrays:
+                try:
+                    value = outputs[name]
+                    if getattr(value, "shape", None) != (size,) and np.shape(value) != (size,):
+                        raise ValueError(name)
+                    arrays[off:off + size] = value
+                except Exception:
+                    raise _diagnose(plan, outputs, k, t) from None
+                frozen.pop(off, None)
         for start, stop in plan.out_block:  # one sum per block; each element only if it is not finite
             block = arrays[start:stop]
             if not _isfinite(_add_reduce(block)) and not np.isfinite(block).all():

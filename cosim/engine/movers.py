@@ -18,11 +18,13 @@ slots handed to readers: made when first read after their owner writes (a
 dict's `__missing__`), shared by every reader until the next write. The array
 outputs of one component that lie side by side in the store are copied at
 once, on the first read of any of them: one copy of the block, and each reader
-gets a read-only view of its slot in it.
+gets a read-only view of its slot in it. They are written at once too
+(`block_writer`): one concatenation into the block instead of a copy per port.
 """
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -100,6 +102,41 @@ def values_picker(sources: Sequence[tuple[bool, int]],
     items = [f"frozen[{int(at)}]" if is_array else f"values[{int(at)}]" for is_array, at in sources]
     return _compile("pick_values", "values", "(" + "".join(f"{item}, " for item in items) + ")",
                     frozen=frozen)
+
+
+def block_writer(out_arrays: Sequence[tuple[str, int, int]]) -> Callable[[np.ndarray, Any], bool] | None:
+    """For two or more array outputs that lie side by side in the store in port order: a function
+    of (arrays, outputs) that writes them all in one copy (np.concatenate into the span) and
+    returns True; False, with nothing promised written, when an output is missing, is not a
+    sequence of its port's size or is not of a type numpy casts safely to float64 (the caller
+    then writes them one by one, which diagnoses them). Else None: no such block.
+
+    Args:
+        out_arrays: (name, offset in `arrays`, size) of the array outputs, in port order.
+    """
+    if len(out_arrays) < 2:
+        return None
+    start = out_arrays[0][1]
+    stop = start
+    for _, offset, size in out_arrays:
+        if offset != stop:
+            return None
+        stop += size
+    pick = operator.itemgetter(*(name for name, _, _ in out_arrays))
+    sizes = tuple(size for _, _, size in out_arrays)
+    concatenate = np.concatenate
+
+    def write(arrays: np.ndarray, outputs: Any) -> bool:
+        try:
+            fields = pick(outputs)
+            if tuple(map(len, fields)) != sizes:
+                return False
+            concatenate(fields, out=arrays[start:stop], casting="safe")
+        except Exception:  # not a mapping, a name missing, not sequences, not numbers
+            return False
+        return True
+
+    return write
 
 
 def output_reader(names: Sequence[str]) -> Callable[[Any], list[float]]:

@@ -71,13 +71,13 @@ class Double(Component):
 class Misbehaving(Component):
     """Returns what its `mode` parameter asks for at tick `at` (t = at * 0.5)."""
 
-    outputs = (Port("y"), Port("w", size=3))
+    outputs = (Port("y"), Port("w", size=3), Port("v", size=2))   # w and v: one block in the store
 
     def __init__(self, mode: str, at: int):
         self.mode, self.at = mode, at
 
     def step(self, t, inputs):
-        out = {"y": 1.0, "w": np.zeros(3)}
+        out = {"y": 1.0, "w": np.zeros(3), "v": [1, 2]}
         if t != self.at * 0.5:
             return out
         if self.mode == "nan":
@@ -88,6 +88,10 @@ class Misbehaving(Component):
             del out["y"]
         elif self.mode == "short":
             out["w"] = np.zeros(2)
+        elif self.mode == "swapped":      # the block's total size, ports' sizes swapped
+            out["w"], out["v"] = np.zeros(2), np.zeros(3)
+        elif self.mode == "text":
+            out["v"] = "ab"
         elif self.mode == "raise":
             raise ValueError("boom")
         return out
@@ -204,6 +208,8 @@ def test_time_is_computed_from_integer_ticks():
     ("inf_array", "output 'w' is non-finite at [1]: inf"),
     ("missing", "output 'y' missing"),
     ("short", "output 'w' has shape (2,), expected (3,)"),
+    ("swapped", "output 'w' has shape (2,), expected (3,)"),
+    ("text", "output 'v' is not a number: 'ab'"),
     ("raise", "ValueError: boom"),
 ])
 def test_bad_outputs_name_component_tick_signal_value(mode, cause):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim.engine.movers import FrozenArrays, input_builder, output_reader, values_picker
+from cosim.engine.movers import FrozenArrays, block_writer, input_builder, output_reader, values_picker
 
 
 def test_inputs_are_a_fresh_dict_scalars_first_in_slot_order_then_arrays():
@@ -58,3 +58,34 @@ def test_a_block_is_copied_once_and_each_reader_gets_a_read_only_view():
     assert first.tolist() == [2.0, 3.0, 4.0]
     frozen.pop(0), frozen.pop(2)
     assert frozen[0].tolist() == [-1.0, -1.0] and frozen[2].tolist() == [-1.0] * 3
+
+
+def test_a_block_of_array_outputs_is_written_in_one_copy_as_port_by_port():
+    write = block_writer([("a", 2, 3), ("b", 5, 2), ("c", 7, 1)])
+    arrays, expected = np.full(9, -1.0), np.full(9, -1.0)
+    outputs = {"a": np.array([0.5, 1.5, 2.5]), "b": [3, 4], "c": np.array([True]), "x": 1.0}
+    assert write(arrays, outputs) is True
+    for name, offset, size in (("a", 2, 3), ("b", 5, 2), ("c", 7, 1)):
+        expected[offset:offset + size] = outputs[name]
+    assert arrays.tobytes() == expected.tobytes()
+
+
+@pytest.mark.parametrize("bad", [
+    {"b": [3.0, 4.0]},                                        # a missing
+    {"a": np.zeros(2), "b": np.zeros(3)},                     # the sizes swapped, the total the same
+    {"a": np.zeros((3, 1)), "b": np.zeros((2, 1))},           # not 1-D
+    {"a": "abc", "b": [1.0, 2.0]},                            # text
+    {"a": np.array([1, 2, 3], dtype=complex), "b": [1.0, 2.0]},   # not safely float64
+    {"a": [1.0, None, 2.0], "b": [1.0, 2.0]},
+])
+def test_a_block_it_cannot_vouch_for_is_left_to_the_port_by_port_path(bad):
+    write = block_writer([("a", 0, 3), ("b", 3, 2)])
+    assert write(np.zeros(5), bad) is False
+    assert write(np.zeros(5), [1.0, 2.0]) is False           # not a mapping
+
+
+def test_only_two_or_more_outputs_side_by_side_in_port_order_are_a_block():
+    assert block_writer([("a", 0, 3)]) is None
+    assert block_writer([("a", 0, 3), ("b", 4, 2)]) is None   # a gap
+    assert block_writer([("b", 3, 2), ("a", 0, 3)]) is None   # not in port order
+    assert block_writer([]) is None
