@@ -21,7 +21,7 @@ forked: its cost at start-up is the difference to "zenoh").
 after the scenario is loaded instead of while it loads), for comparison.
 "zenoh-anycpu" runs `cosim run --lockstep-cpu off` (the processes where the OS
 puts them, instead of on the master's CPU).
-"zenoh-compiled" runs it for 15,000 ticks (`controllers.jit.SHORT_RUN_STEPS`) under
+"zenoh-compiled" runs it for 15,000 controller steps (`controllers.jit.SHORT_RUN_STEPS`) under
 COSIM_JIT=auto: the controller process loads numba's compiled projection and step as
 it does for the README's first command (satory_nominal, 27,500 steps), which the ten
 ticks here would otherwise run interpreted, and the planner keeps its interpreted
@@ -65,13 +65,21 @@ def run_once(scenario: Path, transport: str, out: Path, duration: float,
     extra = [arg for v in transport.split("-")[1:] for arg in variants[v]]
     if "compiled" in transport.split("-")[1:]:
         env = {**env, "COSIM_JIT": "auto"}
-        duration = SHORT_RUN_STEPS * (duration / 10)    # duration is ten ticks
+        duration = SHORT_RUN_STEPS * controller_period(scenario)
     cmd = [*cosim_command(), "run", str(scenario), "--out", str(out), "--no-figures",
            "--transport", transport.split("-")[0], "--set", f"duration={duration!r}", *extra]
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env)
     if done.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed ({done.returncode}):\n{done.stderr}")
     return json.loads((out / "manifest.json").read_text())
+
+
+def controller_period(scenario: Path) -> float:
+    """The period of the scenario's component named `controller` (else its tick), s: a run of
+    SHORT_RUN_STEPS of them has COSIM_JIT=auto compile the controller."""
+    spec = yaml.safe_load(scenario.read_text())
+    controller = (spec.get("components") or {}).get("controller") or {}
+    return float(controller.get("period", spec["tick"]))
 
 
 def floor_s(code: str, repeat: int, env: dict[str, str]) -> float:

@@ -35,8 +35,9 @@ from cosim.component import expected_steps
 JIT_VARIABLE = "COSIM_JIT"
 # COSIM_JIT=auto leaves numba out of a component built for fewer steps than this, unless its
 # compiled parts are loaded in the process already: numba's import and the first load of the
-# cached code delay tick 0 by 0.3-0.45 s, and the compiled paths save 24-27 us per
-# backstepping step (benchmarks/issue14_plan.md, "Session 9"): a shorter run ends sooner without.
+# cached code delay tick 0 by 0.3-0.5 s, and the compiled paths save about 28 us per
+# backstepping step (benchmarks/issue14_plan.md, "Session 9" and "Session 15"): a shorter run
+# ends sooner without. The planner's road search has its own (controllers.road.compiled_path).
 SHORT_RUN_STEPS = 15_000
 JIT_MODES = {"auto": "auto", "": "auto", "on": "on", "1": "on", "yes": "on", "true": "on",
              "off": "off", "0": "off", "no": "off", "false": "off"}

@@ -1,6 +1,6 @@
 """The backstepping step compiled by numba (the `jit` extra): the same bits as step_kernel interpreted.
 
-Imported only by controllers.backstepping.component, through controllers.jit's
+Imported only by controllers.backstepping.step_path, through controllers.jit's
 gate (COSIM_JIT, a bit-for-bit check at first use). step_kernel's functions
 and controllers.tracking.errors_at_feet are compiled from their own source
 (controllers.jit.compile_together), cached on disk by numba beside the sources.

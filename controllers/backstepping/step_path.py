@@ -51,7 +51,8 @@ def _cases():
         for _ in range(60):
             extrapolated = 1 if uniform(0.0, 1.0) < 0.1 else 0
             at_cg = (uniform(0, 50), uniform(-50, 50), uniform(-50, 50), uniform(-1, 1), uniform(-4, 4),
-                     uniform(-0.05, 0.05), uniform(-0.01, 0.01), uniform(2, 20), uniform(-2, 2), 0)
+                     uniform(-0.05, 0.05), uniform(-0.01, 0.01), uniform(2, 20), uniform(-2, 2),
+                     -1 if uniform(0.0, 1.0) < 0.05 else 0)
             preview = (uniform(0, 50), uniform(-50, 50), uniform(-50, 50), uniform(-2, 2), uniform(-4, 4),
                        uniform(-0.05, 0.05), uniform(-0.01, 0.01), uniform(2, 20), uniform(-2, 2), extrapolated)
             yield constants, (uniform(0.005, 0.02), uniform(0.1, 1.2), uniform(-1, 1), uniform(-0.6, 0.6),

@@ -5,9 +5,11 @@ COSIM_JIT, a bit-for-bit check at first use). `newton` and `point` are
 Path._newton and Path._point written on one (10, knots) float64 array of the
 path's knot lists (Path._lists) and the quadrature's fractions and weights, with
 Python's min and max spelled out (`b if b > a else a`: the first argument on ties
-and signed zeros, as the builtins give). Cached on disk by numba beside this
-file; an edit of geometry.py is not seen by that cache, and the gate's check then
-finds the difference and compiles afresh (`recompile`).
+and signed zeros, as the builtins give). A twin written by hand, not compiled from
+geometry.py's source: an edit of Path._point or Path._newton that changes their
+bits must be made here too, else the gate's check finds the difference and the
+interpreted search is used (a warning; an error with COSIM_JIT=on). Cached on
+disk by numba beside this file, which numba's cache sees edited.
 """
 
 from __future__ import annotations

@@ -141,7 +141,8 @@ def cg_and_preview_into(window, x, y, psi, ls, feet):
 def finished(feet, start, px, py, norm):
     """controllers.road.projection.finish of the foot fields at feet[start:start + 12] for the point
     (px, py), given norm = math.hypot(dx, dy) of their tangent (taken in the interpreter: CPython's
-    hypot is not libm's). The same operations in the same order as finish: the same bits."""
+    hypot is not libm's). The same operations in the same order as finish: the same bits; a
+    twin by hand, so an edit of finish must be made here too (the gate's check finds it)."""
     side = int(feet[start + 9])
     offset = feet[start + 3]
     if side == 0:

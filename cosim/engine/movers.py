@@ -131,10 +131,12 @@ def block_writer(out_arrays: Sequence[tuple[str, int, int]]) -> Callable[[np.nda
             fields = pick(outputs)
             if tuple(map(len, fields)) != sizes:
                 return False
-            concatenate(fields, out=arrays[start:stop], casting="safe")
+            span = arrays[start:stop]
+            # `is span`: an output type that takes over np.concatenate (__array_function__)
+            # may return something else and leave the span unwritten
+            return concatenate(fields, out=span, casting="safe") is span
         except Exception:  # not a mapping, a name missing, not sequences, not numbers
             return False
-        return True
 
     return write
 

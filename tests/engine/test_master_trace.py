@@ -215,6 +215,7 @@ def test_time_is_computed_from_integer_ticks():
 def test_bad_outputs_name_component_tick_signal_value(mode, cause):
     comps = {"bad": inproc("bad", Misbehaving, mode=mode, at=3)}
     master = Master(comps, [], tick=0.5, total_ticks=5)
+    assert master._plans[0].write_arrays is not None      # w and v: the block writer, then its fallback
     with pytest.raises(ComponentFailure) as err:
         master.run()
     assert str(err.value) == f"component 'bad' failed at tick 3 (t=1.5 s): {cause}"

@@ -89,3 +89,21 @@ def test_only_two_or_more_outputs_side_by_side_in_port_order_are_a_block():
     assert block_writer([("a", 0, 3), ("b", 4, 2)]) is None   # a gap
     assert block_writer([("b", 3, 2), ("a", 0, 3)]) is None   # not in port order
     assert block_writer([]) is None
+
+
+class _TakesOverConcatenate:
+    """A sequence type whose __array_function__ answers np.concatenate without writing `out`."""
+
+    def __init__(self, values):
+        self.values = values
+
+    def __len__(self):
+        return len(self.values)
+
+    def __array_function__(self, func, types, args, kwargs):
+        return np.array(self.values, dtype=float)
+
+
+def test_a_block_whose_concatenation_is_taken_over_is_not_vouched_for():
+    write = block_writer([("a", 0, 2), ("b", 2, 1)])
+    assert write(np.zeros(3), {"a": _TakesOverConcatenate([1.0, 2.0]), "b": [3.0]}) is False

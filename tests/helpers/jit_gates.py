@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import types
+from collections.abc import Callable
 
 import numpy as np
+import pytest
 
 
 def one_bit_off(monkeypatch, kernel: types.ModuleType, name: str) -> list[str]:
@@ -19,3 +21,15 @@ def one_bit_off(monkeypatch, kernel: types.ModuleType, name: str) -> list[str]:
     monkeypatch.setattr(kernel, name, off_by_one_bit)
     monkeypatch.setattr(kernel, "recompile", lambda: calls.append("recompile"))
     return calls
+
+
+def assert_refused_after_one_recompile(monkeypatch, gate: Callable, kernel: types.ModuleType, name: str,
+                                       warning: str) -> None:
+    """With `kernel.<name>` one bit off, COSIM_JIT=auto's `gate()` compiles afresh once, then warns
+    (`warning`, a regular expression) and gives the interpreted path (None)."""
+    calls = one_bit_off(monkeypatch, kernel, name)
+    monkeypatch.setenv("COSIM_JIT", "auto")
+    gate.cache_clear()
+    with pytest.warns(RuntimeWarning, match=warning):
+        assert gate() is None
+    assert calls == ["recompile"]

@@ -20,7 +20,7 @@ from controllers.linear_plant import LinearPlant
 from controllers.road.projection import FEET_SIZE, finish
 from controllers.vehicle_params import VehicleParams
 from cosim.component import ComponentError
-from tests.helpers.jit_gates import one_bit_off
+from tests.helpers.jit_gates import assert_refused_after_one_recompile, one_bit_off
 from tests.helpers.closed_loop import CirclePath, make_window, run_closed_loop
 
 pytest.importorskip("numba")
@@ -40,7 +40,7 @@ def _feet(rng: np.random.Generator) -> tuple[tuple, tuple]:
         return (float(rng.uniform(0, 80)), float(rng.uniform(-60, 60)), float(rng.uniform(-60, 60)),
                 float(rng.normal(0, 0.8)), float(rng.uniform(-7, 7)), float(rng.normal(0, 0.03)),
                 float(rng.normal(0, 0.005)), float(rng.uniform(0, 25)), float(rng.normal(0, 1.5)), extrapolated)
-    return foot(0), foot(int(rng.choice([-1, 0, 0, 0, 1])))
+    return foot(int(rng.choice([-1, 0, 0, 0, 0, 0, 0, 1]))), foot(int(rng.choice([-1, 0, 0, 0, 1])))
 
 
 def _compiled_controller(settings: dict, jit_mode) -> tuple:
@@ -87,7 +87,7 @@ def test_the_step_on_the_projections_buffer_equals_the_interpreted_step_on_its_f
     controller, compiled, constants = _compiled_controller(settings, jit_mode)
     assert controller._step_on_feet is compiled.step_on_feet
     rng, feet = np.random.default_rng(29), np.full(FEET_SIZE, np.nan)
-    floored = beyond = 0
+    floored = beyond = cg_beyond = 0
     for _ in range(2000):
         at_cg, preview = (_unfinished(rng, foot) for foot in _feet(rng))
         x, y, preview_x, preview_y = rng.uniform(-60, 60, 4).tolist()
@@ -102,7 +102,8 @@ def test_the_step_on_the_projections_buffer_equals_the_interpreted_step_on_its_f
         assert repr(got) == repr(expected), (at_cg, preview, x, y, state, plant)
         floored += math.hypot(*at_cg[10:]) < 1e-300
         beyond += preview[9] != 0
-    assert floored > 10 and beyond > 300
+        cg_beyond += at_cg[9] != 0
+    assert floored > 10 and beyond > 300 and cg_beyond > 100
 
 
 def test_the_controller_steps_on_the_projections_buffer_when_both_are_compiled(jit_mode):
@@ -198,3 +199,11 @@ def test_on_with_a_step_that_disagrees_is_an_error(jit_mode, monkeypatch):
     with pytest.raises(RuntimeError, match=r"COSIM_JIT=on: the compiled backstepping step disagrees with the "
                                            r"interpreted one: on \("):
         step_path.compiled_step()
+
+
+def test_the_gate_refuses_a_step_on_the_buffer_one_bit_off(jit_mode, monkeypatch):
+    from controllers.backstepping import step_jit
+
+    jit_mode("off")
+    assert_refused_after_one_recompile(monkeypatch, step_path.compiled_step, step_jit, "step_on_feet",
+                                       r"the compiled backstepping step is not used: on the feet \(")

@@ -19,7 +19,7 @@ from cosim.component import constructing_for
 from controllers.planning import Planner
 from controllers.road import compiled_path
 from controllers.road.geometry import Path
-from tests.helpers.jit_gates import one_bit_off
+from tests.helpers.jit_gates import assert_refused_after_one_recompile
 
 numba = pytest.importorskip("numba")
 
@@ -125,10 +125,6 @@ def test_a_search_that_disagrees_is_compiled_afresh_once_then_not_used(jit_mode,
     jit_mode("off")
     from controllers.road import geometry_jit
 
-    calls = one_bit_off(monkeypatch, geometry_jit, "point")
-    monkeypatch.setenv("COSIM_JIT", "auto")
-    compiled_path.compiled_geometry.cache_clear()
-    with pytest.warns(RuntimeWarning, match=r"the compiled road projection is not used: at s = -12.0 it gives"):
-        assert compiled_path.compiled_geometry() is None
-    assert calls == ["recompile"]
+    assert_refused_after_one_recompile(monkeypatch, compiled_path.compiled_geometry, geometry_jit, "point",
+                                       r"the compiled road projection is not used: at s = -12.0 it gives")
     assert Planner().road.reference._compiled is None
