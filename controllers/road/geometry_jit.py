@@ -1,6 +1,6 @@
 """A Path's foot-point Newton iteration compiled by numba (the `jit` extra): the same bits as interpreted.
 
-Imported only through controllers.road.geometry's gate (`compiled_geometry`:
+Imported only through controllers.road.compiled_path's gate (`compiled_geometry`:
 COSIM_JIT, a bit-for-bit check at first use). `newton` and `point` are
 Path._newton and Path._point written on one (10, knots) float64 array of the
 path's knot lists (Path._lists) and the quadrature's fractions and weights, with
