@@ -15,10 +15,17 @@ numba), checks it bit for bit against the interpreted path on built-in
 cases, compiles it afresh once if they disagree (numba's disk cache does not
 see an edit of a module whose functions were inlined), and otherwise falls
 back to the interpreted path with a warning (an error with `on`).
+
+In a component process (`cosim.component.may_load_beside`) under auto, a part
+that would be compiled is loaded on a thread beside the run instead
+(`beside_the_run`): the component steps interpreted until it is ready, then
+takes it between two steps, with the same bits, so tick 0 does not wait for
+numba's 0.3-0.6 s.
 """
 
 from __future__ import annotations
 
+import gc
 import importlib.abc
 import importlib.machinery
 import importlib.util
@@ -30,7 +37,7 @@ import warnings
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from cosim.component import expected_steps
+from cosim.component import expected_steps, may_load_beside, start_beside
 
 JIT_VARIABLE = "COSIM_JIT"
 # COSIM_JIT=auto leaves numba out of a component built for fewer steps than this, unless its
@@ -163,6 +170,80 @@ def for_this_component(gate: Callable[[], Any], short_run_steps: int = SHORT_RUN
         if steps is not None and steps < short_run_steps:
             return None
     return gate()
+
+
+# While a part loads beside the run, the interpreter hands the lock from the loading thread to
+# the stepping one after this long at most (Python's default: 5 ms, a stall at every step).
+LOADING_SWITCH_INTERVAL_S = 0.00005
+# Objects made by a load above which it collects before freezing them (numba compiling afresh
+# leaves some 200,000 unreachable ones; loading from its cache, few): cosim.startup_gc's figure.
+COLLECT_FIRST_ABOVE = 300_000
+
+
+class Later:
+    """A compiled part loading beside the run: `ready` turns True once its gate has answered,
+    and `kernel` is then the answer (None: the interpreted path stays)."""
+
+    __slots__ = ("gate", "ready", "kernel")
+
+    def __init__(self, gate: Callable[[], Any]) -> None:
+        self.gate, self.ready, self.kernel = gate, False, None
+
+
+_waiting: list[Later] = []   # loads not started yet, in the order they were asked for
+_waiting_lock = threading.Lock()
+_loading = False   # a thread beside the run is taking loads from _waiting
+
+
+def beside_the_run(gate: Callable[[], Any], short_run_steps: int = SHORT_RUN_STEPS) -> Later | None:
+    """Start loading `gate()` (a compiled part's loader, as in `for_this_component`) on a thread
+    beside the run and return its `Later`; or None, when the component should call
+    `for_this_component` instead: its host does not allow it (`may_load_beside`), COSIM_JIT is not
+    auto (on: the part before tick 0, or an error; off: never), this process has loaded the part
+    already, or the run is shorter than `short_run_steps`."""
+    if not may_load_beside() or is_loaded(gate) or jit_mode()[0] != "auto":
+        return None
+    steps = expected_steps()
+    if steps is not None and steps < short_run_steps:
+        return None
+    global _loading
+    later = Later(gate)
+    with _waiting_lock:
+        _waiting.append(later)
+        start, _loading = not _loading, True
+    if start:
+        start_beside(_load_waiting, "jit")
+    return later
+
+
+def _load_waiting() -> None:
+    """The thread beside the run: every waiting load, one after the other, then it ends."""
+    global _loading
+    interval, collecting = sys.getswitchinterval(), gc.isenabled()
+    sys.setswitchinterval(LOADING_SWITCH_INTERVAL_S)
+    gc.disable()   # what a load makes lives as long as the process: frozen below, not traversed
+    try:
+        while True:
+            with _waiting_lock:
+                later = _waiting.pop(0) if _waiting else None
+            if later is None:
+                break
+            try:
+                later.kernel = later.gate()
+            except Exception as error:   # noqa: BLE001 - auto never fails a run for its compiled parts
+                warnings.warn(f"a compiled part is not used: {error!r}", RuntimeWarning, stacklevel=1)
+            later.ready = True
+    finally:
+        if collecting:
+            if gc.get_count()[0] > COLLECT_FIRST_ABOVE:
+                gc.collect()
+            gc.freeze()
+            gc.enable()
+        sys.setswitchinterval(interval)
+        with _waiting_lock:   # a load asked for since the last look gets a thread of its own
+            _loading = again = bool(_waiting)
+        if again:
+            start_beside(_load_waiting, "jit")
 
 
 def njit_cached(function: Callable) -> Any:

@@ -72,8 +72,10 @@ class InputReader:
     """
 
     def __init__(self) -> None:
-        # the compiled projection's import and load now, before the first tick, not in it
-        self._compiled = jit.for_this_component(compiled_kernel) is not None
+        # the compiled projection loading beside the run (taken at a new window once ready), or its
+        # import and load now, before the first tick, not in it
+        self._later = jit.beside_the_run(compiled_kernel)
+        self._compiled = self._later is None and jit.for_this_component(compiled_kernel) is not None
         self._arrays: tuple = ()
         self._frozen = False
         self._content = b""
@@ -122,6 +124,8 @@ class InputReader:
         (PreparedWindow.checked): the window is valid and not empty. Anything else goes through
         validate_window for a message naming the field, index and value.
         """
+        if self._later is not None and self._later.ready:   # the compiled projection, from this window on
+            self._compiled, self._later = self._later.kernel is not None, None
         try:
             matrix = np.array(arrays, dtype=np.float64)
         except (TypeError, ValueError):

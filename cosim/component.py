@@ -55,6 +55,15 @@ estimate: a worker runs some of them, and samples that vary the duration or a
 period differ in length); else None (a Python session may run again). A component with a costly
 set-up that only pays off over many steps (loading compiled code) can then do
 without it for a short run.
+
+A host whose component waits between steps (a component process: its thread sits
+in the transport's receive while the rest of the run computes) also tells the
+constructor `may_load_beside()`: the component may then start that set-up on a
+thread of its own (`start_beside`) and step without it until it is ready, so that
+tick 0 does not wait for it. The steps must give the same results either way. In
+the master's own process it is False: the loop would share the interpreter with
+the set-up. A host that pins its lockstep chain to one CPU gives such a thread the
+other CPUs (it works beside the lockstep, not in it).
 """
 
 from __future__ import annotations
@@ -67,6 +76,8 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, Union
 
 import numpy as np
+
+from cosim.beside import BESIDE_THREAD_PREFIX, start_beside  # noqa: F401 - part of the contract
 
 Value = Union[float, np.ndarray]
 
@@ -210,13 +221,26 @@ def expected_steps() -> int | None:
     return _expected_steps.get()
 
 
+_may_load_beside: contextvars.ContextVar[bool] = contextvars.ContextVar("may_load_beside", default=False)
+
+
+def may_load_beside() -> bool:
+    """During the construction of a component by its host: whether the component may load a
+    costly part on a thread beside the run (`start_beside`) and step without it meanwhile
+    (see the module docstring); False outside a construction."""
+    return _may_load_beside.get()
+
+
 @contextlib.contextmanager
-def constructing_for(steps: int | None) -> Iterator[None]:
-    """Around a host's construction of a component: `expected_steps()` gives `steps`."""
+def constructing_for(steps: int | None, load_beside: bool = False) -> Iterator[None]:
+    """Around a host's construction of a component: `expected_steps()` gives `steps`,
+    `may_load_beside()` gives `load_beside`."""
     token = _expected_steps.set(steps)
+    beside = _may_load_beside.set(load_beside)
     try:
         yield
     finally:
+        _may_load_beside.reset(beside)
         _expected_steps.reset(token)
 
 

@@ -149,12 +149,18 @@ class BacksteppingController(Component):
             self.limits.min_torque, self.limits.max_delta, self.limits.max_delta_rate, self.mu_min,
             self.mu_max, self.g_mu)
         assert len(constants) == step_kernel.STEP_SIZE
-        compiled = jit.for_this_component(compiled_step)
-        self._step, self._constants = ((compiled.step, compiled.constants(constants)) if compiled is not None
-                                       else (step_kernel.step, constants))
+        self._step_constants = constants
+        # the compiled step loading beside the run (taken between two steps once ready), or now
+        self._later = jit.beside_the_run(compiled_step)
+        self._use_step(None if self._later is not None else jit.for_this_component(compiled_step))
+        self._feet, self._ls = np.zeros(FEET_SIZE), float(ls)     # a float: the compiled code's one signature
+
+    def _use_step(self, compiled) -> None:
+        """Step with controllers.backstepping.step_jit `compiled`, or interpreted when it is None."""
+        self._step, self._constants = ((compiled.step, compiled.constants(self._step_constants))
+                                       if compiled is not None else (step_kernel.step, self._step_constants))
         # the projection and the step both compiled: the step takes the feet from the projection's buffer
         self._step_on_feet = compiled.step_on_feet if compiled is not None else None
-        self._feet, self._ls = np.zeros(FEET_SIZE), float(ls)     # a float: the compiled code's one signature
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """One control step at time t (see module docstring): step_values on the mapping."""
@@ -162,6 +168,9 @@ class BacksteppingController(Component):
 
     def step_values(self, t: float, values: tuple) -> tuple[float, ...]:
         """`step` on the inputs in CONTROLLER_INPUTS order; the outputs in OUTPUT_NAMES order."""
+        if self._later is not None and self._later.ready:   # the same bits from here on, compiled
+            self._use_step(self._later.kernel)
+            self._later = None
         dt = self.clock.advance(t)
         (x, y, psi, vx, vy, r), window = self.reader.read_values(values, t)
         if window is None:

@@ -16,7 +16,9 @@ imports in every process at once, uses every CPU: pinned from the spawn, tick
 runtime threads and every thread of the chain's other processes (components,
 isolated FMU hosts, by pid) on one CPU; threads they start later inherit it.
 Other threads of the master's process (a notebook's, the Foxglove server's)
-keep their CPUs. When the context ends it restores the CPUs of every thread
+keep their CPUs, and a chain process's threads that work beside the lockstep (an
+OS name starting with `cosim.beside.BESIDE_THREAD_PREFIX`: a controller's
+compiled code loading while it steps) get the other CPUs. When the context ends it restores the CPUs of every thread
 of this process it pinned, and widens those born pinned meanwhile. `release`
 gives a helper process started during the run that is not in the chain (the
 recorder's writer) the other CPUs, so it does not compete with the chain.
@@ -35,6 +37,7 @@ import re
 import threading
 from collections.abc import Iterable
 
+from cosim.beside import BESIDE_THREAD_PREFIX
 from cosim.errors import UserError
 
 AUTO, OFF = "auto", "off"
@@ -118,9 +121,9 @@ def _threads() -> list[int]:
         return []
 
 
-def _thread_name(tid: int) -> str:
+def _thread_name(tid: int, pid: int | str = "self") -> str:
     try:
-        with open(f"/proc/self/task/{tid}/comm") as comm:
+        with open(f"/proc/{pid}/task/{tid}/comm") as comm:
             return comm.read().strip()
     except OSError:
         return ""
@@ -163,7 +166,8 @@ class PinnedChain:
 
     def pin(self, processes: Iterable[int] = ()) -> int | None:
         """Put this thread, Zenoh's runtime threads and every thread of `processes` (the
-        chain's other processes, on this machine) on one CPU; return it, or None.
+        chain's other processes, on this machine) on one CPU; return it, or None. The
+        threads of `processes` that work beside the lockstep get the other CPUs.
 
         Called once everything has started (start-up uses every CPU), just before tick 0.
         """
@@ -181,7 +185,10 @@ class PinnedChain:
         self.cpu, _active = cpu, self  # before any change: an interruption below is undone at exit
         _set(self._saved, {cpu})
         for pid in processes:
-            _set(_threads_of(pid), {cpu})
+            threads = _threads_of(pid)
+            beside = [tid for tid in threads if _thread_name(tid, pid).startswith(BESIDE_THREAD_PREFIX)]
+            _set([tid for tid in threads if tid not in beside], {cpu})
+            _set(beside, self.others())
         return cpu
 
     def _choose(self) -> int | None:

@@ -61,11 +61,13 @@ def _problem_of(launch: PythonComponentLaunch, exc: Exception) -> ParameterProbl
     return None
 
 
-def construct_component(launch: PythonComponentLaunch) -> Component:
+def construct_component(launch: PythonComponentLaunch, load_beside: bool = False) -> Component:
     """Import and construct the component of `launch`, checking its ports.
 
     Args:
         launch: what to construct.
+        load_beside: the constructor may load a costly part on a thread beside the run
+            (`cosim.component.may_load_beside`): a host whose component waits between steps.
     Raises:
         UserError naming the component when the class is missing, rejects its
         parameters or declares invalid ports.
@@ -73,7 +75,7 @@ def construct_component(launch: PythonComponentLaunch) -> Component:
     cls = import_component_class(launch.class_path, launch.name)
     check_parameters(cls, launch)
     try:
-        with constructing_for(launch.steps):
+        with constructing_for(launch.steps, load_beside):
             instance = cls(**dict(launch.parameters))
         ports_by_name(tuple(instance.inputs))
         ports_by_name(tuple(instance.outputs))

@@ -22,3 +22,16 @@ def jit_mode(monkeypatch):
     yield set_mode
     for gate in gates:
         gate.cache_clear()
+
+
+@pytest.fixture
+def fresh(monkeypatch):
+    """mode(m): COSIM_JIT = m with neither of the controllers' compiled parts (projection, step)
+    loaded in this process yet; unlike jit_mode it asks no gate."""
+    def mode(value: str) -> None:
+        monkeypatch.setenv(jit.JIT_VARIABLE, value)
+        projection.compiled_kernel.cache_clear()
+        step_path.compiled_step.cache_clear()
+    yield mode
+    projection.compiled_kernel.cache_clear()
+    step_path.compiled_step.cache_clear()

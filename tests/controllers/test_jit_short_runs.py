@@ -15,17 +15,6 @@ from cosim.component import constructing_for
 pytest.importorskip("numba")
 
 
-@pytest.fixture
-def fresh(monkeypatch):
-    """mode(m): COSIM_JIT = m with neither compiled part loaded in this process yet."""
-    def mode(value: str) -> None:
-        monkeypatch.setenv(jit.JIT_VARIABLE, value)
-        projection.compiled_kernel.cache_clear()
-        step_path.compiled_step.cache_clear()
-    yield mode
-    projection.compiled_kernel.cache_clear()
-    step_path.compiled_step.cache_clear()
-
 
 def paths(steps: int | None) -> tuple[bool, bool]:
     """(projection compiled, step compiled) of a controller built for `steps`."""

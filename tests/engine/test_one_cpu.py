@@ -14,7 +14,7 @@ from collections.abc import Mapping
 import pytest
 
 import cosim
-from cosim.component import Component, Port, Value
+from cosim.component import Component, Port, Value, may_load_beside, start_beside
 from cosim.engine import one_cpu
 from cosim.errors import UserError
 
@@ -38,6 +38,31 @@ SCENARIO = {"name": "cpu_report", "duration": 0.05, "tick": 0.01,
             "components": {"probe": {"python": "tests.engine.test_one_cpu:CpuReporter"}},
             "sources": {"u": {"kind": "constant", "value": 1.0}},
             "connections": [{"from": "u.value", "to": "probe.x"}]}
+
+
+class BesideReporter(Component):
+    """Starts a thread beside the run when its host allows it (-1 outputs when not); outputs the CPUs
+    that thread and the stepping one may run on."""
+
+    inputs = (Port("x"),)
+    outputs = (Port("beside_cpus"), Port("beside_first_cpu"), Port("cpus"))
+
+    def __init__(self) -> None:
+        self.done = threading.Event()
+        self.thread = start_beside(lambda: self.done.wait(60), "probe") if may_load_beside() else None
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        beside = os.sched_getaffinity(self.thread.native_id) if self.thread is not None else {-1}
+        return {"beside_cpus": float(len(beside)) if self.thread is not None else -1.0,
+                "beside_first_cpu": float(min(beside)), "cpus": float(len(os.sched_getaffinity(0)))}
+
+    def finish(self) -> dict[str, float]:
+        self.done.set()
+        return {}
+
+
+BESIDE_SCENARIO = {**SCENARIO, "name": "beside_report",
+                   "components": {"probe": {"python": "tests.engine.test_one_cpu:BesideReporter"}}}
 
 
 @pytest.mark.parametrize("value, expected", [("auto", "auto"), ("OFF", "off"), ("1", 1), (0, 0),
@@ -193,6 +218,19 @@ def test_a_zenoh_run_puts_its_component_processes_on_the_manifests_cpu(tmp_path)
     free = cosim.run(SCENARIO, transport="zenoh", out=tmp_path / "off", lockstep_cpu="off")
     assert json.loads((tmp_path / "off" / "manifest.json").read_text())["lockstep_cpu"] is None
     assert set(free.signals["probe.cpus"]) == {float(len(ALLOWED))}
+
+
+@needs_two_cpus
+def test_a_thread_beside_the_lockstep_gets_the_other_cpus_and_only_component_processes_start_one(tmp_path):
+    run = cosim.run(BESIDE_SCENARIO, transport="zenoh", out=tmp_path / "zenoh")
+    cpu = json.loads((tmp_path / "zenoh" / "manifest.json").read_text())["lockstep_cpu"]
+    others = ALLOWED - {cpu}
+    assert run.status == "ok" and set(run.signals["probe.cpus"]) == {1.0}        # the stepping thread: the chain's
+    assert set(run.signals["probe.beside_cpus"]) == {float(len(others))}
+    assert set(run.signals["probe.beside_first_cpu"]) == {float(min(others))}
+
+    inproc = cosim.run(BESIDE_SCENARIO, transport="inproc", out=tmp_path / "inproc")
+    assert inproc.status == "ok" and set(inproc.signals["probe.beside_cpus"]) == {-1.0}  # the master's process: not
 
 
 def test_an_in_process_run_pins_nothing(tmp_path):

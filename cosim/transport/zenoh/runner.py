@@ -100,7 +100,8 @@ class _Server:
         self.build_error = ""
         self.build_detail: dict[str, str] = {}  # the parameter a constructor rejected, if known
         try:
-            self.component = construct_component(launch)
+            # its thread waits between steps: a compiled part may load beside them
+            self.component = construct_component(launch, load_beside=True)
         except ParameterProblem as exc:
             self.build_error = str(exc)
             self.build_detail = {"parameter": exc.parameter, "problem": exc.problem}

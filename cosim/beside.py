@@ -1,0 +1,37 @@
+"""Threads that work beside a run's lockstep chain, not in it.
+
+A component may start a thread for work the lockstep does not wait for (a
+controller loading its compiled code while it steps: controllers.jit). Its name,
+in Python and in the OS, starts with BESIDE_THREAD_PREFIX, so that a host that
+pins the chain's threads to one CPU (cosim.engine.one_cpu) gives it the other
+CPUs instead. Standard library only: the run path reads the prefix before it
+loads numpy. Components reach this through cosim.component.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+
+BESIDE_THREAD_PREFIX = "beside-"
+
+
+def start_beside(target: Callable[[], None], name: str) -> threading.Thread:
+    """Start a daemon thread that runs `target()`, named BESIDE_THREAD_PREFIX + `name` in
+    Python and, on Linux, in the OS (its first 15 bytes: what /proc shows). The OS name
+    is set when this returns."""
+    named = threading.Event()
+
+    def run() -> None:
+        try:
+            with open("/proc/thread-self/comm", "w") as comm:
+                comm.write(threading.current_thread().name[:15])
+        except OSError:  # not Linux
+            pass
+        named.set()
+        target()
+
+    thread = threading.Thread(target=run, name=BESIDE_THREAD_PREFIX + name, daemon=True)
+    thread.start()
+    named.wait()
+    return thread
