@@ -172,9 +172,6 @@ def for_this_component(gate: Callable[[], Any], short_run_steps: int = SHORT_RUN
     return gate()
 
 
-# While a part loads beside the run, the interpreter hands the lock from the loading thread to
-# the stepping one after this long at most (Python's default: 5 ms, a stall at every step).
-LOADING_SWITCH_INTERVAL_S = 0.00005
 # Objects made by a load above which it collects before freezing them (numba compiling afresh
 # leaves some 200,000 unreachable ones; loading from its cache, few): cosim.startup_gc's figure.
 COLLECT_FIRST_ABOVE = 300_000
@@ -219,8 +216,7 @@ def beside_the_run(gate: Callable[[], Any], short_run_steps: int = SHORT_RUN_STE
 def _load_waiting() -> None:
     """The thread beside the run: every waiting load, one after the other, then it ends."""
     global _loading
-    interval, collecting = sys.getswitchinterval(), gc.isenabled()
-    sys.setswitchinterval(LOADING_SWITCH_INTERVAL_S)
+    collecting = gc.isenabled()
     gc.disable()   # what a load makes lives as long as the process: frozen below, not traversed
     try:
         while True:
@@ -239,7 +235,6 @@ def _load_waiting() -> None:
                 gc.collect()
             gc.freeze()
             gc.enable()
-        sys.setswitchinterval(interval)
         with _waiting_lock:   # a load asked for since the last look gets a thread of its own
             _loading = again = bool(_waiting)
         if again:

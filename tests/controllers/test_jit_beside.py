@@ -78,7 +78,6 @@ def test_a_controller_loading_beside_steps_interpreted_then_compiled_with_the_sa
     interpreted = _closed_loop(BacksteppingController(**_settings()))
 
     fresh("auto")
-    interval = sys.getswitchinterval()
     with constructing_for(jit.SHORT_RUN_STEPS, load_beside=True):
         controller = BacksteppingController(**_settings())
     assert controller._later is not None and controller.reader._later is not None
@@ -91,7 +90,7 @@ def test_a_controller_loading_beside_steps_interpreted_then_compiled_with_the_sa
     assert stepping.compiled[0] is False and stepping.compiled[-1] is True
     assert stepping.compiled.count(False) >= 1 and stepping.compiled.count(True) >= 400
     assert len(stepping.on_feet) >= 400          # new windows prepared compiled: the step on their buffer
-    assert sys.getswitchinterval() == interval and gc.isenabled()   # the loader gave both back
+    assert gc.isenabled()   # the loader paused collection while it loaded, and gave it back
 
 
 @pytest.mark.parametrize("mode, steps, allowed, loads_beside", [
