@@ -16,16 +16,16 @@ cases, compiles it afresh once if they disagree (numba's disk cache does not
 see an edit of a module whose functions were inlined), and otherwise falls
 back to the interpreted path with a warning (an error with `on`).
 
-In a component process (`cosim.component.may_load_beside`) under auto, a part
-that would be compiled is loaded on a thread beside the run instead
-(`beside_the_run`): the component steps interpreted until it is ready, then
-takes it between two steps, with the same bits, so tick 0 does not wait for
-numba's 0.3-0.6 s.
+In a component process (`cosim.component.may_load_beside`) under auto, the
+controllers' projection and backstepping step, when they would be compiled, are
+loaded on a thread beside the run instead (`beside_the_run`): the component steps
+interpreted until they are ready, then takes them between two steps, with the same
+bits, so tick 0 does not wait for numba's 0.3-0.6 s. (The planner's road search,
+compiled only for runs of 30,000 planner steps or more, still loads before tick 0.)
 """
 
 from __future__ import annotations
 
-import gc
 import importlib.abc
 import importlib.machinery
 import importlib.util
@@ -116,13 +116,15 @@ def _load_numpy_support_without_scipy_linalg() -> None:
     if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
         return  # loaded already, or scipy.linalg is: nothing to save
     hidden = _HiddenOnThisThread("scipy.linalg")
-    sys.meta_path.insert(0, hidden)
+    # new lists, not the list changed in place: another thread's import may be going over it
+    # (this runs on the thread that loads beside the run too)
+    sys.meta_path = [hidden, *sys.meta_path]
     try:
         import numba.np.arraymath as arraymath
     except Exception:  # noqa: BLE001 - numba's own first compile reports a broken numba
         return
     finally:
-        sys.meta_path.remove(hidden)
+        sys.meta_path = [finder for finder in sys.meta_path if finder is not hidden]
     arraymath._HAVE_BLAS = _has_extension("scipy.linalg", "cython_blas")
 
 
@@ -172,11 +174,6 @@ def for_this_component(gate: Callable[[], Any], short_run_steps: int = SHORT_RUN
     return gate()
 
 
-# Objects made by a load above which it collects before freezing them (numba compiling afresh
-# leaves some 200,000 unreachable ones; loading from its cache, few): cosim.startup_gc's figure.
-COLLECT_FIRST_ABOVE = 300_000
-
-
 class Later:
     """A compiled part loading beside the run: `ready` turns True once its gate has answered,
     and `kernel` is then the answer (None: the interpreted path stays)."""
@@ -209,15 +206,13 @@ def beside_the_run(gate: Callable[[], Any], short_run_steps: int = SHORT_RUN_STE
         _waiting.append(later)
         start, _loading = not _loading, True
     if start:
-        start_beside(_load_waiting, "jit")
+        start_beside(_load_waiting, "jit", loads=True)
     return later
 
 
 def _load_waiting() -> None:
     """The thread beside the run: every waiting load, one after the other, then it ends."""
     global _loading
-    collecting = gc.isenabled()
-    gc.disable()   # what a load makes lives as long as the process: frozen below, not traversed
     try:
         while True:
             with _waiting_lock:
@@ -227,18 +222,22 @@ def _load_waiting() -> None:
             try:
                 later.kernel = later.gate()
             except Exception as error:   # noqa: BLE001 - auto never fails a run for its compiled parts
-                warnings.warn(f"a compiled part is not used: {error!r}", RuntimeWarning, stacklevel=1)
-            later.ready = True
+                _warn(f"a compiled part is not used: {error!r}")
+            finally:
+                later.ready = True
     finally:
-        if collecting:
-            if gc.get_count()[0] > COLLECT_FIRST_ABOVE:
-                gc.collect()
-            gc.freeze()
-            gc.enable()
         with _waiting_lock:   # a load asked for since the last look gets a thread of its own
             _loading = again = bool(_waiting)
         if again:
-            start_beside(_load_waiting, "jit")
+            start_beside(_load_waiting, "jit", loads=True)
+
+
+def _warn(message: str) -> None:
+    """A RuntimeWarning from the thread beside the run, which an error filter cannot end."""
+    try:
+        warnings.warn(message, RuntimeWarning, stacklevel=1)
+    except Warning:   # -W error: the component stays interpreted all the same
+        pass
 
 
 def njit_cached(function: Callable) -> Any:

@@ -72,8 +72,8 @@ class InputReader:
     """
 
     def __init__(self) -> None:
-        # the compiled projection loading beside the run (taken at a new window once ready), or its
-        # import and load now, before the first tick, not in it
+        # the compiled projection loading beside the run (taken at the first read once ready), or
+        # its import and load now, before the first tick, not in it
         self._later = jit.beside_the_run(compiled_kernel)
         self._compiled = self._later is None and jit.for_this_component(compiled_kernel) is not None
         self._arrays: tuple = ()
@@ -99,6 +99,8 @@ class InputReader:
             t: the step's time, for messages; inputs: the same as a mapping, if the caller has it
                 (built from `values` only when a bad window needs it for its message).
         """
+        if self._later is not None and self._later.ready:
+            self._take_compiled()
         plant = tuple(map(float, values[:6]))
         if not math.isfinite(sum(plant)):
             for name, value in zip(PLANT_NAMES, plant):
@@ -117,6 +119,12 @@ class InputReader:
         self._frozen = all(map(is_frozen, arrays))
         return plant, self._prepared
 
+    def _take_compiled(self) -> None:
+        """The compiled projection loaded beside the run is ready: prepare windows with it from
+        this read on, the current one again (the same bits)."""
+        self._compiled, self._later = self._later.kernel is not None, None
+        self._arrays, self._frozen, self._content = (), False, b""
+
     def _prepare(self, arrays: tuple, inputs: Mapping[str, Value], t: float) -> bytes:
         """Check the window, keep its PreparedWindow (None for an all-zero window); return its bytes.
 
@@ -124,8 +132,6 @@ class InputReader:
         (PreparedWindow.checked): the window is valid and not empty. Anything else goes through
         validate_window for a message naming the field, index and value.
         """
-        if self._later is not None and self._later.ready:   # the compiled projection, from this window on
-            self._compiled, self._later = self._later.kernel is not None, None
         try:
             matrix = np.array(arrays, dtype=np.float64)
         except (TypeError, ValueError):

@@ -13,14 +13,24 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 
+from cosim import startup_gc
+
 BESIDE_THREAD_PREFIX = "beside-"
 
 
-def start_beside(target: Callable[[], None], name: str) -> threading.Thread:
+def start_beside(target: Callable[[], None], name: str, loads: bool = False) -> threading.Thread:
     """Start a daemon thread that runs `target()`, named BESIDE_THREAD_PREFIX + `name` in
     Python and, on Linux, in the OS (its first 15 bytes: what /proc shows). The OS name
-    is set when this returns."""
+    is set when this returns.
+
+    Args:
+        loads: `target` makes objects that live as long as the process (compiled code):
+            Python's collector is held back until it returns, then those are frozen
+            (cosim.startup_gc.hold), so that collections neither go over them while they
+            are made, holding the interpreter the stepping thread needs, nor after.
+    """
     named = threading.Event()
+    held = loads and startup_gc.hold()   # here, not in the thread: before the host's resume
 
     def run() -> None:
         try:
@@ -29,7 +39,11 @@ def start_beside(target: Callable[[], None], name: str) -> threading.Thread:
         except OSError:  # not Linux
             pass
         named.set()
-        target()
+        try:
+            target()
+        finally:
+            if held:
+                startup_gc.let_go()
 
     thread = threading.Thread(target=run, name=BESIDE_THREAD_PREFIX + name, daemon=True)
     thread.start()

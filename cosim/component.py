@@ -57,13 +57,13 @@ set-up that only pays off over many steps (loading compiled code) can then do
 without it for a short run.
 
 A host whose component waits between steps (a component process: its thread sits
-in the transport's receive while the rest of the run computes) also tells the
-constructor `may_load_beside()`: the component may then start that set-up on a
-thread of its own (`start_beside`) and step without it until it is ready, so that
-tick 0 does not wait for it. The steps must give the same results either way. In
-the master's own process it is False: the loop would share the interpreter with
-the set-up. A host that pins its lockstep chain to one CPU gives such a thread the
-other CPUs (it works beside the lockstep, not in it).
+in the transport's receive while the rest of the run computes) and that may use more
+than one CPU also tells the constructor `may_load_beside()`: the component may then
+start that set-up on a thread of its own (`start_beside`, from cosim.beside) and step
+without it until it is ready, so that tick 0 does not wait for it. The steps must give
+the same results either way. In the master's own process it is False: the loop would
+share the interpreter with the set-up. A host that pins its lockstep chain to one CPU
+gives such a thread the other CPUs (it works beside the lockstep, not in it).
 """
 
 from __future__ import annotations

@@ -34,6 +34,27 @@ def test_paused_then_resumed_with_a_freeze():
     assert done.stdout.split("\n")[:3] == ["False True", "True True False", "True"]
 
 
+def test_a_hold_beside_the_run_outlasts_a_resume_and_freezes_when_it_lets_go():
+    done = run_python("""
+        import gc
+        from cosim import startup_gc
+        startup_gc.pause()                   # a component process while it starts
+        print(startup_gc.hold())             # its thread beside the run starts loading
+        startup_gc.resume(freeze=True)       # the component is built: the host resumes
+        print(gc.isenabled(), gc.get_freeze_count())
+        startup_gc.let_go()                  # the load is done
+        print(gc.isenabled(), gc.get_freeze_count() > 0)
+        print(startup_gc.hold(), gc.isenabled())   # a hold alone, collection on before
+        startup_gc.let_go()
+        print(gc.isenabled())
+        gc.disable()                          # off by another's choice: not this module's to turn on
+        print(startup_gc.hold(), gc.isenabled())
+    """)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split("\n")[:6] == ["True", "False 0", "True True", "True False", "True",
+                                           "False False"]
+
+
 def test_nothing_paused_outside_the_command():
     done = run_python("""
         import gc, sys

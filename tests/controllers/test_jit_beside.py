@@ -9,6 +9,7 @@ import gc
 import sys
 import threading
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -27,39 +28,69 @@ pytest.importorskip("numba")
 LOAD_TIMEOUT_S = 120.0   # numba compiling afresh into an empty cache, on a slow machine
 
 
-
-def _wait_until_ready(*laters: jit.Later) -> None:
+def _wait_until_ready(*laters) -> None:
     deadline = time.monotonic() + LOAD_TIMEOUT_S
     while not all(later.ready for later in laters):
         assert time.monotonic() < deadline, "the load beside the run did not end"
         time.sleep(0.005)
 
 
-class _StepsWhileLoading:
-    """The controller, with a wait for its loads before step `wait_at`; notes which path each step took."""
+class _Gate:
+    """A load beside the run (ended already) that the test lets through at a step of its choosing,
+    its kernel seen through `wrap`."""
 
-    def __init__(self, controller: BacksteppingController, wait_at: int) -> None:
-        self.controller, self.wait_at, self.steps = controller, wait_at, 0
-        self.compiled: list[bool] = []   # per step: the compiled step was in use after it
-        self.on_feet: list[int] = []     # calls of the compiled step on the projection's buffer
-        self.laters = (controller.reader._later, controller._later)
+    def __init__(self, later: jit.Later, wrap=lambda kernel: kernel) -> None:
+        self.later, self.open, self.wrap = later, False, wrap
+
+    @property
+    def ready(self) -> bool:
+        return self.open and self.later.ready
+
+    @property
+    def kernel(self):
+        return self.wrap(self.later.kernel)
+
+
+class _CountingStepOnFeet:
+    """A compiled step whose step on the projection's buffer notes the step it is called in."""
+
+    def __init__(self, kernel, stepping: "_Stepping") -> None:
+        self.kernel, self.stepping = kernel, stepping
+
+    def __getattr__(self, name: str):
+        return getattr(self.kernel, name)
+
+    def step_on_feet(self, *arguments):
+        self.stepping.on_feet.append(self.stepping.steps)
+        return self.kernel.step_on_feet(*arguments)
+
+
+class _Stepping:
+    """The controller in the closed loop, its projection let through before step `projection_at` and
+    its step before step `step_at`; notes which paths each step took."""
+
+    def __init__(self, controller: BacksteppingController, projection_at: int, step_at: int) -> None:
+        self.controller, self.steps = controller, 0
+        controller.reader._later = _Gate(controller.reader._later)
+        controller._later = _Gate(controller._later, lambda kernel: _CountingStepOnFeet(kernel, self))
+        self.opening = {projection_at: [controller.reader._later], step_at: [controller._later]}
+        if projection_at == step_at:
+            self.opening[step_at] = [controller.reader._later, controller._later]
+        self.step_compiled: list[bool] = []      # per step: the compiled step was in use after it
+        self.window_compiled: list[bool] = []    # per step: its window was prepared compiled
+        self.on_feet: list[int] = []             # the steps made on the compiled projection's buffer
 
     def initialize(self, t, inputs):
         return self.controller.initialize(t, inputs)
 
     def step(self, t, inputs):
         self.steps += 1
-        if self.steps == self.wait_at:
-            _wait_until_ready(*self.laters)
+        for gate in self.opening.get(self.steps, ()):
+            gate.open = True
         outputs = self.controller.step(t, inputs)
-        self.compiled.append(self.controller._step is not step_kernel.step)
-        exact = self.controller._step_on_feet
-        if exact is not None and not getattr(exact, "counted", False):
-            def counted(*arguments):
-                self.on_feet.append(1)
-                return exact(*arguments)
-            counted.counted = True
-            self.controller._step_on_feet = counted
+        controller = self.controller
+        self.step_compiled.append(controller._step is not step_kernel.step)
+        self.window_compiled.append(controller.reader._prepared.compiled_feet is not None)
         return outputs
 
 
@@ -69,28 +100,49 @@ def _closed_loop(controller) -> dict[str, bytes]:
     return {name: values.tobytes() for name, values in record.items()}
 
 
-def _settings() -> dict:
-    return dict(lateral_law="feedforward", adaptive=True, adaptation="robust", mu0=0.6)
+SETTINGS = dict(lateral_law="feedforward", adaptive=True, adaptation="robust", mu0=0.6)
 
 
-def test_a_controller_loading_beside_steps_interpreted_then_compiled_with_the_same_bits(fresh):
-    fresh("off")
-    interpreted = _closed_loop(BacksteppingController(**_settings()))
-
-    fresh("auto")
+def _loading_beside() -> BacksteppingController:
     with constructing_for(jit.SHORT_RUN_STEPS, load_beside=True):
-        controller = BacksteppingController(**_settings())
+        controller = BacksteppingController(**SETTINGS)
     assert controller._later is not None and controller.reader._later is not None
     assert controller._step is step_kernel.step and not controller.reader._compiled   # nothing waited for
-    stepping = _StepsWhileLoading(controller, wait_at=40)
+    return controller
+
+
+@pytest.fixture
+def interpreted(fresh) -> dict[str, bytes]:
+    """The closed loop of the interpreted controller; COSIM_JIT=auto, nothing loaded, afterwards."""
+    fresh("off")
+    record = _closed_loop(BacksteppingController(**SETTINGS))
+    fresh("auto")
+    return record
+
+
+def test_a_controller_loading_beside_steps_on_while_it_loads_with_the_same_bits(interpreted):
+    controller = _loading_beside()
+    laters = (controller.reader._later, controller._later)
+    assert _closed_loop(controller) == interpreted         # the loads end whenever they end
+    _wait_until_ready(*laters)
+    assert gc.isenabled()   # collection was held back while they loaded, and given back
+
+
+# (the step the projection is let through at, the step the backstepping step is): either first,
+# both at a window's first step (every 10th) or within a window, a long stretch with one only
+@pytest.mark.parametrize("projection_at, step_at", [(40, 45), (45, 40), (41, 80), (80, 41), (40, 40), (47, 47)])
+def test_taking_the_compiled_parts_between_two_steps_keeps_every_bit(interpreted, projection_at, step_at):
+    controller = _loading_beside()
+    _wait_until_ready(controller.reader._later, controller._later)
+    stepping = _Stepping(controller, projection_at, step_at)
     assert _closed_loop(stepping) == interpreted
 
     assert controller._later is None and controller.reader._later is None   # both taken
-    assert controller.reader._compiled and controller._step is not step_kernel.step
-    assert stepping.compiled[0] is False and stepping.compiled[-1] is True
-    assert stepping.compiled.count(False) >= 1 and stepping.compiled.count(True) >= 400
-    assert len(stepping.on_feet) >= 400          # new windows prepared compiled: the step on their buffer
-    assert gc.isenabled()   # the loader paused collection while it loaded, and gave it back
+    steps = range(1, len(stepping.step_compiled) + 1)
+    assert stepping.step_compiled == [k >= step_at for k in steps]
+    # the projection from the read that takes it, the window of that step prepared again
+    assert stepping.window_compiled == [k >= projection_at for k in steps]
+    assert stepping.on_feet == [k for k in steps if k >= max(projection_at, step_at)]
 
 
 @pytest.mark.parametrize("mode, steps, allowed, loads_beside", [
@@ -127,17 +179,53 @@ def test_a_part_this_process_has_loaded_is_taken_at_once(fresh):
     assert controller.reader._compiled and controller._step is not step_kernel.step
 
 
+def _broken_gate():
+    raise RuntimeError("no LLVM today")
+
+
+_broken_gate.cache_info = lambda: type("Info", (), {"currsize": 0})()   # jit.is_loaded asks it
+
+
 def test_a_load_that_fails_leaves_the_interpreted_path_with_a_warning(fresh):
     fresh("auto")
-
-    def broken():
-        raise RuntimeError("no LLVM today")
-    broken.cache_info = lambda: type("Info", (), {"currsize": 0})()
     with pytest.warns(RuntimeWarning, match="a compiled part is not used: RuntimeError"):
         with constructing_for(None, load_beside=True):
-            later = jit.beside_the_run(broken)
+            later = jit.beside_the_run(_broken_gate)
         _wait_until_ready(later)
     assert later.kernel is None
+
+
+def test_a_load_that_fails_under_warnings_as_errors_still_ends(fresh):
+    fresh("auto")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with constructing_for(None, load_beside=True):
+            later = jit.beside_the_run(_broken_gate)
+        _wait_until_ready(later)
+    assert later.kernel is None
+
+
+def test_the_reader_takes_the_compiled_projection_without_a_new_window(fresh):
+    fresh("auto")
+    controllers = []
+    for _ in range(2):   # one lets its loads through at step 3, its twin never
+        fresh("auto")    # each loads beside the run
+        with constructing_for(None, load_beside=True):
+            controller = BacksteppingController()
+        _wait_until_ready(controller._later, controller.reader._later)
+        controller.reader._later, controller._later = _Gate(controller.reader._later), _Gate(controller._later)
+        controllers.append(controller)
+    taking, twin = controllers
+    s = np.arange(64.0)
+    window = tuple(np.array(field) for field in
+                   (s, 0.01 * s, np.zeros(64), np.zeros(64), s, np.full(64, 10.0), np.zeros(64)))
+    for k in range(1, 6):       # the same window's arrays at every step
+        if k == 3:
+            taking.reader._later.open = taking._later.open = True
+        plant = (3.0 + 0.1 * k, 0.2, 0.01, 10.0, 0.0, 0.001)
+        assert repr(taking.step_values(0.01 * k, plant + window)) == repr(twin.step_values(0.01 * k, plant + window))
+    assert taking.reader._later is None and taking.reader._prepared.compiled_feet is not None
+    assert twin.reader._prepared.compiled_feet is None and taking._step is not step_kernel.step
 
 
 def test_a_thread_beside_carries_its_name_into_the_os():
@@ -151,13 +239,3 @@ def test_a_thread_beside_carries_its_name_into_the_os():
     finally:
         go.set()
         thread.join(10)
-
-
-def test_the_compiled_step_is_taken_at_the_next_step_even_before_any_window(fresh):
-    fresh("auto")
-    with constructing_for(None, load_beside=True):
-        controller = BacksteppingController()
-    feet = controller._feet
-    _wait_until_ready(controller._later, controller.reader._later)
-    controller.step_values(0.01, (0.0,) * 6 + (np.zeros(2),) * 7)   # an all-zero window: the held outputs
-    assert controller._later is None and controller._feet is feet

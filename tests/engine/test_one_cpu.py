@@ -233,6 +233,18 @@ def test_a_thread_beside_the_lockstep_gets_the_other_cpus_and_only_component_pro
     assert inproc.status == "ok" and set(inproc.signals["probe.beside_cpus"]) == {-1.0}  # the master's process: not
 
 
+@needs_two_cpus
+def test_a_component_process_with_one_cpu_is_not_offered_a_thread_beside(tmp_path):
+    """As on a sweep worker's CPU: a thread beside the chain would share the chain's one CPU."""
+    script = (f"import os, cosim\nos.sched_setaffinity(0, {{{min(ALLOWED)}}})\n"
+              f"run = cosim.run({BESIDE_SCENARIO!r}, transport='zenoh', out={str(tmp_path / 'one')!r})\n"
+              f"print(run.status, sorted(set(run.signals['probe.beside_cpus'])))")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
+                          cwd=os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["ok", "[-1.0]"]
+
+
 def test_an_in_process_run_pins_nothing(tmp_path):
     setting = min(ALLOWED) if ALLOWED and one_cpu.supported() else "auto"
     cosim.run(SCENARIO, transport="inproc", out=tmp_path / "inproc", lockstep_cpu=setting)

@@ -100,8 +100,10 @@ class _Server:
         self.build_error = ""
         self.build_detail: dict[str, str] = {}  # the parameter a constructor rejected, if known
         try:
-            # its thread waits between steps: a compiled part may load beside them
-            self.component = construct_component(launch, load_beside=True)
+            # its thread waits between steps: a compiled part may load beside them, on a CPU
+            # beside the lockstep chain's (not on a sweep worker's one CPU: there it would
+            # share that CPU with the chain, and the whole run would take longer)
+            self.component = construct_component(launch, load_beside=_cpus() > 1)
         except ParameterProblem as exc:
             self.build_error = str(exc)
             self.build_detail = {"parameter": exc.parameter, "problem": exc.problem}
@@ -199,6 +201,14 @@ class _Server:
             cause = f"finish() failed: {describe_exception(exc)}"
             return encode_json(Kind.ERROR, seq, tick, t, {"cause": cause})
         return encode_json(Kind.METRICS, seq, tick, t, document)
+
+
+def _cpus() -> int:
+    """How many CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # no affinity on this platform
+        return os.cpu_count() or 1
 
 
 def _exit_when_master_gone(session: zenoh.Session, run_id: str) -> None:
