@@ -206,7 +206,13 @@ def beside_the_run(gate: Callable[[], Any], short_run_steps: int = SHORT_RUN_STE
         _waiting.append(later)
         start, _loading = not _loading, True
     if start:
-        start_beside(_load_waiting, "jit", loads=True)
+        try:
+            start_beside(_load_waiting, "jit", loads=True)
+        except RuntimeError:   # no thread to be had: the component loads the part now instead
+            with _waiting_lock:
+                _waiting.remove(later)
+                _loading = False
+            return None
     return later
 
 

@@ -46,6 +46,11 @@ def start_beside(target: Callable[[], None], name: str, loads: bool = False) -> 
                 startup_gc.let_go()
 
     thread = threading.Thread(target=run, name=BESIDE_THREAD_PREFIX + name, daemon=True)
-    thread.start()
+    try:
+        thread.start()
+    except BaseException:  # no thread to be had (RuntimeError): nothing is held for it
+        if held:
+            startup_gc.let_go()
+        raise
     named.wait()
     return thread

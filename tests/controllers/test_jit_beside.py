@@ -228,6 +228,20 @@ def test_the_reader_takes_the_compiled_projection_without_a_new_window(fresh):
     assert twin.reader._prepared.compiled_feet is None and taking._step is not step_kernel.step
 
 
+def test_without_a_thread_to_be_had_the_part_loads_at_once_and_nothing_stays_held(fresh, monkeypatch):
+    fresh("auto")
+
+    def refused(self):
+        raise RuntimeError("can't start new thread")
+    monkeypatch.setattr(threading.Thread, "start", refused)
+    with constructing_for(None, load_beside=True):
+        controller = BacksteppingController()
+    monkeypatch.undo()
+    assert controller._later is None and controller.reader._later is None      # loaded before it returned
+    assert controller.reader._compiled and controller._step is not step_kernel.step
+    assert gc.isenabled() and not jit._loading and not jit._waiting
+
+
 def test_a_thread_beside_carries_its_name_into_the_os():
     go = threading.Event()
     thread = start_beside(lambda: go.wait(10), "probe")
