@@ -167,11 +167,15 @@ def for_this_component(gate: Callable[[], Any], short_run_steps: int = SHORT_RUN
     process yet and the component being built will step fewer than `short_run_steps` times
     (`cosim.component.expected_steps`; unknown: compiled). The default suits the
     controllers' parts; a part that saves less per step passes a larger number."""
-    if not is_loaded(gate) and jit_mode()[0] == "auto":
-        steps = expected_steps()
-        if steps is not None and steps < short_run_steps:
-            return None
+    if not is_loaded(gate) and jit_mode()[0] == "auto" and _too_short(short_run_steps):
+        return None
     return gate()
+
+
+def _too_short(short_run_steps: int) -> bool:
+    """Whether the component being built will step fewer than `short_run_steps` times (unknown: no)."""
+    steps = expected_steps()
+    return steps is not None and steps < short_run_steps
 
 
 class Later:
@@ -195,10 +199,7 @@ def beside_the_run(gate: Callable[[], Any], short_run_steps: int = SHORT_RUN_STE
     `for_this_component` instead: its host does not allow it (`may_load_beside`), COSIM_JIT is not
     auto (on: the part before tick 0, or an error; off: never), this process has loaded the part
     already, or the run is shorter than `short_run_steps`."""
-    if not may_load_beside() or is_loaded(gate) or jit_mode()[0] != "auto":
-        return None
-    steps = expected_steps()
-    if steps is not None and steps < short_run_steps:
+    if not may_load_beside() or is_loaded(gate) or jit_mode()[0] != "auto" or _too_short(short_run_steps):
         return None
     global _loading
     later = Later(gate)
@@ -219,23 +220,26 @@ def beside_the_run(gate: Callable[[], Any], short_run_steps: int = SHORT_RUN_STE
 def _load_waiting() -> None:
     """The thread beside the run: every waiting load, one after the other, then it ends."""
     global _loading
-    try:
-        while True:
-            with _waiting_lock:
-                later = _waiting.pop(0) if _waiting else None
-            if later is None:
-                break
-            try:
-                later.kernel = later.gate()
-            except Exception as error:   # noqa: BLE001 - auto never fails a run for its compiled parts
-                _warn(f"a compiled part is not used: {error!r}")
-            finally:
-                later.ready = True
-    finally:
-        with _waiting_lock:   # a load asked for since the last look gets a thread of its own
-            _loading = again = bool(_waiting)
-        if again:
-            start_beside(_load_waiting, "jit", loads=True)
+    while True:
+        with _waiting_lock:   # an empty queue and the end in one step: a later load starts a thread
+            if not _waiting:
+                _loading = False
+                return
+            later = _waiting.pop(0)
+        try:
+            later.kernel = later.gate()
+        except Exception as error:   # noqa: BLE001 - auto never fails a run for its compiled parts
+            _warn(f"a compiled part is not used: {error!r}")
+        finally:
+            later.ready = True
+
+
+def now_or_beside(gate: Callable[[], Any],
+                  short_run_steps: int = SHORT_RUN_STEPS) -> tuple[Any | None, Later | None]:
+    """(the compiled part now, or None for the interpreted path; its load beside the run, or None):
+    `beside_the_run` when it applies, else `for_this_component`."""
+    later = beside_the_run(gate, short_run_steps)
+    return (None, later) if later is not None else (for_this_component(gate, short_run_steps), None)
 
 
 def _warn(message: str) -> None:

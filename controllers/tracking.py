@@ -72,10 +72,10 @@ class InputReader:
     """
 
     def __init__(self) -> None:
-        # the compiled projection loading beside the run (taken at the first read once ready), or
-        # its import and load now, before the first tick, not in it
-        self._later = jit.beside_the_run(compiled_kernel)
-        self._compiled = self._later is None and jit.for_this_component(compiled_kernel) is not None
+        # the compiled projection's import and load now, before the first tick, not in it; or loading
+        # beside the run (taken at the first read once ready)
+        kernel, self._later = jit.now_or_beside(compiled_kernel)
+        self._compiled = kernel is not None
         self._arrays: tuple = ()
         self._frozen = False
         self._content = b""

@@ -150,9 +150,9 @@ class BacksteppingController(Component):
             self.mu_max, self.g_mu)
         assert len(constants) == step_kernel.STEP_SIZE
         self._step_constants = constants
-        # the compiled step loading beside the run (taken between two steps once ready), or now
-        self._later = jit.beside_the_run(compiled_step)
-        self._use_step(None if self._later is not None else jit.for_this_component(compiled_step))
+        # the compiled step now, or loading beside the run (taken between two steps once ready)
+        compiled, self._later = jit.now_or_beside(compiled_step)
+        self._use_step(compiled)
         self._feet, self._ls = np.zeros(FEET_SIZE), float(ls)     # a float: the compiled code's one signature
 
     def _use_step(self, compiled) -> None:
