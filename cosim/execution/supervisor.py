@@ -25,7 +25,11 @@ Every `POLL_S` and on every signal the supervisor reads the breadcrumb:
   not return within `INTERRUPT_GRACE_S` (native code ignores signals), it is
   killed and the run folder completed as interrupted.
 
-Otherwise it exits with the master's status. Standard library only (cosim.startup_gc
+Whichever way the master ends, the supervisor then ends what it left running
+before exiting: the processes of the master's process group and any orphan
+it adopted as the master's subreaper (a component process whose start a
+Ctrl-C cut short has no handle in the master; the CSV writer has a session of
+its own). Otherwise it exits with the master's status. Standard library only (cosim.startup_gc
 is too), plus the salvage, loaded only when needed.
 """
 
@@ -50,6 +54,8 @@ POLL_S = 0.05
 INTERRUPT_GRACE_S = 0.5
 REMOTE_MARGIN_S = 2.0  # beyond a proxied component's own deadline
 LEFTOVER_GRACE_S = 1.0
+REAP_WAIT_S = 1.0  # after SIGKILL, for the kernel to end what was killed
+PR_SET_CHILD_SUBREAPER = 36  # linux/prctl.h
 FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
@@ -103,6 +109,7 @@ def fork_supervisor() -> int | None:
     page = ControlPage()
     watched = {*FORWARDED, signal.SIGCHLD}
     old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, watched)
+    subreaper = _become_subreaper()  # before the fork: the child does not inherit it
     pid = os.fork()
     if pid == 0:
         signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
@@ -113,6 +120,7 @@ def fork_supervisor() -> int | None:
     try:
         return Supervisor(pid, page).run()
     finally:
+        _end_leftovers(pid, subreaper)
         signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
 
 
@@ -227,7 +235,6 @@ class Supervisor:
         except Exception as exc:  # noqa: BLE001 - the line must still be printed
             message = (f"the master process ended ({_what(verdict)}); the run folder "
                        f"{folder} could not be completed: {exc}")
-        _end_leftovers(folder, self.pid)
         _say(f"run failed: {message}")
         return 1
 
@@ -258,34 +265,74 @@ def _what(verdict: dict[str, Any]) -> str:
     return verdict.get("signal") or f"exit status {verdict.get('exit_code')}"
 
 
-def _end_leftovers(folder: Path | None, master_pid: int) -> None:
-    """End the component processes the manifest lists, if the master's death left them."""
+def _become_subreaper() -> bool:
+    """Make this process the subreaper of its descendants (Linux): an orphan of the master
+    becomes its child, which it can end and reap. Whether that was done."""
     try:
-        pids = json.loads((folder / "manifest.json").read_text()).get("pids", {}) if folder else {}
-    except (OSError, ValueError):
-        return
-    alive = [p for p in set(pids.values()) if isinstance(p, int) and p != master_pid]
-    for pid in alive:
-        _signal(pid, signal.SIGTERM)
-    end = time.monotonic() + LEFTOVER_GRACE_S
-    while alive and time.monotonic() < end:
-        alive = [p for p in alive if _exists(p)]
-        time.sleep(0.02)
-    for pid in alive:
-        _kill(pid)
+        import ctypes
 
-
-def _exists(pid: int) -> bool:
-    try:
-        waited, _ = os.waitpid(pid, os.WNOHANG)  # our child: reap it
-        return waited == 0
-    except ChildProcessError:
-        pass
-    try:
-        with open(f"/proc/{pid}/stat") as stat:
-            return stat.read().rsplit(")", 1)[-1].split()[0] != "Z"
-    except OSError:
+        return ctypes.CDLL(None, use_errno=True).prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) == 0
+    except (OSError, AttributeError):  # not Linux: the master's process group is still ended
         return False
+
+
+def _end_leftovers(group: int, adopted: bool) -> None:
+    """End what the master (leader of process group `group`, already reaped) left running:
+    that group and, when this process is a subreaper (`adopted`), the orphans it
+    adopted. SIGTERM (and SIGCONT, for a stopped one), SIGKILL after
+    `LEFTOVER_GRACE_S`; adopted ones are reaped, so none is left once this returns."""
+    if not _left(group, adopted):
+        return  # the usual end: nothing
+    for signo in (signal.SIGTERM, signal.SIGCONT):
+        _signal_all(group, adopted, signo)
+    end = time.monotonic() + LEFTOVER_GRACE_S
+    while _left(group, adopted) and time.monotonic() < end:
+        time.sleep(0.02)
+    _signal_all(group, adopted, signal.SIGKILL)
+    end = time.monotonic() + REAP_WAIT_S
+    while _left(group, adopted) and time.monotonic() < end:
+        time.sleep(0.005)
+
+
+def _left(group: int, adopted: bool) -> bool:
+    """Whether a process of `group`, or an adopted child, still runs (ended children reaped)."""
+    child_running = adopted and _reap_children()
+    try:
+        os.killpg(group, 0)
+    except (ProcessLookupError, PermissionError):
+        return child_running
+    return True
+
+
+def _reap_children() -> bool:
+    """Reap every child that has ended; whether one still runs."""
+    while True:
+        try:
+            pid, _ = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return False
+        if pid == 0:
+            return True
+
+
+def _signal_all(group: int, adopted: bool, signo: int) -> None:
+    try:
+        os.killpg(group, signo)
+    except (ProcessLookupError, PermissionError):
+        pass
+    for pid in _children() if adopted else ():
+        _signal(pid, signo)
+
+
+def _children() -> list[int]:
+    """This process's children, from /proc (every thread's list)."""
+    pids: list[int] = []
+    for task in Path("/proc/self/task").glob("*"):
+        try:
+            pids += [int(p) for p in (task / "children").read_text().split()]
+        except (OSError, ValueError):
+            continue
+    return pids
 
 
 def _signal(pid: int, signo: int) -> None:
