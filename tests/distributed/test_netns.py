@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import select
 import signal
 import subprocess
 import sys
@@ -24,6 +23,7 @@ from cosim.cli.app import main
 from cosim.results.recorder import read_signals
 from tests.helpers.credentials import auth_deploy_file, shared_credentials_file
 from tests.helpers import netns
+from tests.helpers.lines import line_reader, wait_for_line
 from tests.helpers.paths import REPO_ROOT
 
 pytestmark = [pytest.mark.integration, pytest.mark.netns,
@@ -59,10 +59,9 @@ def _env() -> dict[str, str]:
 class Host:
     """A worker process inside a namespace (its own process group: the "host")."""
 
-    # A worker start in a fresh namespace has, rarely (seen three times in session 1's
-    # full-suite runs, cause not found yet), hung before "ready" without a message.
-    # So a start that does not get ready is killed (never leaked: it would hold the port
-    # and fail every later test) and tried once more.
+    # A start that does not get ready is killed (never leaked: it would hold the port and
+    # fail every later test) and tried once more. (The rare "hung before ready" of the
+    # early sessions was the test's buffered readline hiding the line: tests.helpers.lines.)
     START_TRIES, START_TIMEOUT_S = 2, 30
 
     def __init__(self, lab: netns.NetLab, host: str, name: str, *extra: str) -> None:
@@ -91,11 +90,8 @@ class Host:
         if self.proc.poll() is not None:
             return ""
         os.kill(self.proc.pid, signal.SIGUSR1)
-        lines, end = [], time.monotonic() + 2.0
-        while time.monotonic() < end and select.select([self.proc.stdout], [], [], 0.2)[0]:
-            line = self.proc.stdout.readline()
-            if not line:
-                break
+        reader, lines, end = line_reader(self.proc), [], time.monotonic() + 2.0
+        while (line := reader.next_line(end)) is not None:
             lines.append(line)
         return " stacks: " + "".join(lines)
 
@@ -113,22 +109,6 @@ class Host:
                 self.signal(signal.SIGKILL)
                 self.proc.wait()
         self.proc.stdout.close()
-
-
-def wait_for_line(proc: subprocess.Popen, text: str, timeout_s: float) -> None:
-    """Read `proc`'s output until a line contains `text`; fail on timeout or exit."""
-    end = time.monotonic() + timeout_s
-    seen = []
-    while time.monotonic() < end:
-        ready, _, _ = select.select([proc.stdout], [], [], 0.2)
-        if ready:
-            line = proc.stdout.readline()
-            if not line and proc.poll() is not None:
-                break
-            seen.append(line)
-            if text in line:
-                return
-    raise AssertionError(f"no line {text!r} within {timeout_s} s; output: {''.join(seen)}")
 
 
 @pytest.fixture(scope="module")

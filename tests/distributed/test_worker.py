@@ -472,7 +472,7 @@ def test_cli_router_and_worker_processes_end_cleanly_on_sigterm():
     import signal
     import subprocess
     import sys
-    from tests.distributed.test_netns import wait_for_line
+    from tests.helpers.lines import wait_for_line
     endpoint = free_tcp_endpoint()
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     router = subprocess.Popen([sys.executable, "-m", "cosim.cli.app", "router", "--listen", endpoint],
