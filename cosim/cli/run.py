@@ -97,7 +97,8 @@ def run(
     from cosim.engine.startup import StartupClock
 
     clock = StartupClock.from_process_start()  # time to tick 0 as the user sees it
-    interrupts.restore()  # from here a Ctrl-C is handled below and by the run
+    # until `_start_and_run` gives Ctrl-C back to Python, the early handler ends the command
+    # (the supervisor too, before its fork) with one line: nothing before can be left behind
     if scenario is None:
         raise _list_shipped()
     try:
@@ -151,6 +152,7 @@ def _start_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path
     a user error or a Ctrl-C before tick 0 becomes the command's exit."""
     early = None
     try:
+        interrupts.restore()  # from here a Ctrl-C is handled below and by the run
         if prestart:
             from cosim.execution.prestart import prestart_components
 

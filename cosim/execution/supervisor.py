@@ -112,8 +112,8 @@ def fork_supervisor() -> int | None:
     subreaper = _become_subreaper()  # before the fork: the child does not inherit it
     pid = os.fork()
     if pid == 0:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
         os.setpgid(0, 0)  # a terminal's Ctrl-C reaches the supervisor, which forwards it once
+        signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)  # a forwarded one is delivered now
         _page = page
         return None
     startup_gc.resume()  # it lasts as long as the run: collect, whatever the command's start chose
@@ -121,6 +121,8 @@ def fork_supervisor() -> int | None:
         return Supervisor(pid, page).run()
     finally:
         _end_leftovers(pid, subreaper)
+        while signal.sigtimedwait(FORWARDED, 0) is not None:
+            pass  # one that came after the master ended: not raised here once unblocked
         signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
 
 

@@ -5,6 +5,7 @@ no process left behind."""
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -95,6 +96,53 @@ def test_ctrl_c_at_start_exits_1_with_one_line_and_a_failed_manifest(tmp_path, d
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["status"] == "failed" and manifest["error"].startswith("interrupted")
     assert last == f"run failed: {manifest['error']}"
+
+
+# The command with a Ctrl-C sent at a chosen point of its start (no timing involved):
+# "options", while its options are checked (before the supervisor's fork); "fork", in
+# the master just after the fork, as the supervisor forwards one there.
+INTERRUPT_AT = """\
+import os, signal, sys
+sys.argv[0] = "cosim"  # the command itself: its early Ctrl-C handler, its supervisor
+import cosim.execution.run as execution_run
+import cosim.execution.supervisor as supervisor
+
+def interrupt():
+    os.kill(os.getpid(), signal.SIGINT)
+
+check, fork = execution_run.check_run_options, supervisor.fork_supervisor
+
+def check_then_interrupt(*args):
+    check(*args)
+    interrupt()
+
+def fork_then_interrupt():
+    status = fork()
+    if status is None:  # in the master
+        interrupt()
+    return status
+
+if os.environ["AT"] == "options":
+    execution_run.check_run_options = check_then_interrupt
+else:
+    supervisor.fork_supervisor = fork_then_interrupt
+from cosim.cli.app import main
+sys.exit(main())
+"""
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("at", ["options", "fork"])
+def test_ctrl_c_before_the_run_starts_is_one_line_and_exit_1(tmp_path, at):
+    out = tmp_path / "run"
+    proc = subprocess.run(
+        [sys.executable, "-c", INTERRUPT_AT, "run", str(LANE_CHANGE), "--out", str(out),
+         "--no-figures"], cwd=ROOT, env={**os.environ, "AT": at, "PYTHONPATH": str(ROOT)},
+        capture_output=True, text=True, timeout=50, start_new_session=True,
+        preexec_fn=_interactive_sigint)
+    assert (proc.returncode, proc.stderr, proc.stdout) == (
+        1, "run failed: interrupted before tick 0\n", "")
+    assert not out.exists()
 
 
 def _interrupted_run(*args, **kwargs):
