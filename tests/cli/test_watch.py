@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 
@@ -78,10 +79,12 @@ def test_watching_a_run_from_a_second_process_prints_the_recorded_values(tmp_pat
     scenario = tmp_path / "gain.yaml"
     scenario.write_text(GOOD)
     out = tmp_path / "run"
-    # 3 s of simulated time paced at real time leaves the watcher time to connect
+    # paced at real time and long enough for a watcher started on a busy machine; ended
+    # by Ctrl-C once the watcher has its lines (the interrupted run keeps every tick)
     run = subprocess.Popen([sys.executable, "-m", "cosim.cli.app", "run", str(scenario), "--out",
-                            str(out), "--no-figures", "--set", "duration=3.0", "--realtime", "1"],
-                           cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, text=True)
+                            str(out), "--no-figures", "--set", "duration=60.0", "--realtime", "1"],
+                           cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, text=True,
+                           preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         lines = [run.stdout.readline(), run.stdout.readline()]
         assert lines[0] == f"run folder: {out}\n"
@@ -90,7 +93,8 @@ def test_watching_a_run_from_a_second_process_prints_the_recorded_values(tmp_pat
             [sys.executable, "-m", "cosim.cli.app", "watch", str(out), "--signals", "gain.*",
              "--every", "20", "--count", "4"],
             cwd=tmp_path, env=_env(), capture_output=True, text=True, timeout=60)
-        assert run.wait(timeout=60) == 0
+        run.send_signal(signal.SIGINT)
+        assert run.wait(timeout=60) == 1  # interrupted: the run folder holds what it did
     finally:
         run.kill()
     assert watcher.returncode == 0, watcher.stderr

@@ -7,6 +7,8 @@ import contextlib
 import os
 import signal
 import threading
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -70,12 +72,27 @@ def test_killed_process_fails_by_death_detection_not_deadline():
     assert failure.cause == "process killed by SIGKILL"
 
 
+def _wait_until_dead(pid: int) -> None:
+    """Until `pid` is a zombie or gone, read from /proc: not reaped here (os.waitid would
+    race the host's watchdog, which polls the same child)."""
+    end = time.monotonic() + 10
+    while time.monotonic() < end:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
+        except OSError:
+            return
+        if state in ("Z", "X"):
+            return
+        time.sleep(0.001)
+    raise AssertionError(f"process {pid} still alive 10 s after SIGKILL")
+
+
 def test_process_killed_between_ticks_fails_at_next_step():
     def kill_now(hosted, k):
         if k == 4:
             pid = hosted.pids["mixer"]
             os.kill(pid, signal.SIGKILL)
-            os.waitid(os.P_PID, pid, os.WEXITED | os.WNOWAIT)  # dead before we step
+            _wait_until_dead(pid)  # dead before we step
     failure = fail_at_step([launch("mixer", "Mixer")], "mixer", 10, before_step=kill_now)
     assert (failure.component, failure.tick) == ("mixer", 4)
     assert failure.cause == "process killed by SIGKILL"
