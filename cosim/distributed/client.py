@@ -157,6 +157,9 @@ class WorkerChild:
     """
 
     is_local = False  # its pid is the worker's
+    # after its token vanished: for the worker's exit notice, or the worker's own token to
+    # vanish too (a host killed or cut off: the two losses come over two connections)
+    verdict_wait_s = 1.0
 
     def __init__(self, hosted: "DistributedComponents", spec: PythonComponentLaunch,
                  worker: str, info: Mapping[str, Any]) -> None:
@@ -191,6 +194,10 @@ class WorkerChild:
         """The exit code the worker reported, or None while the process runs."""
         notice = self.hosted.exit_notice(self.name)
         return None if notice is None else int(notice.get("exit_code") or 0)
+
+    def end_known(self) -> bool:
+        """Whether how the process ended can be told: its worker's notice, or the worker gone."""
+        return self.hosted.exit_notice(self.name) is not None or self.hosted.worker_gone(self.worker)
 
     def describe_exit(self) -> str:
         """How the process ended, as its worker told (or that both went silent)."""

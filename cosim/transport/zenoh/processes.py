@@ -94,6 +94,7 @@ class ChildProcess:
     """
 
     is_local = True  # a process of this machine (a worker's stand-in says False)
+    verdict_wait_s = 0.2  # after its token vanished, how long its exit code may take to show
 
     def __init__(self, spec: PythonComponentLaunch, run_id: str, endpoint: str, *,
                  credential: Credential | None = None,
@@ -168,6 +169,10 @@ class ChildProcess:
     def exit_code(self) -> int | None:
         """The exit code if the process has ended (negative: killed by that signal)."""
         return self.popen.poll()
+
+    def end_known(self) -> bool:
+        """Whether how the process ended can be told (here: it has an exit code)."""
+        return self.exit_code() is not None
 
     def describe_exit(self) -> str:
         """How the process ended, with the tail of what it printed."""

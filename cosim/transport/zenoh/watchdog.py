@@ -22,7 +22,6 @@ from cosim.transport.zenoh.wire import Kind, encode_json
 from cosim.transport.zenoh.processes import ChildProcess
 
 POLL_S = 0.02
-EXIT_CODE_WAIT_S = 0.2  # after a token vanishes, time allowed for the exit code to show
 
 
 class Watchdog:
@@ -80,7 +79,7 @@ class Watchdog:
             if sample.kind == zenoh.SampleKind.DELETE:
                 name = str(sample.key_expr).rsplit("/", 1)[-1]
                 if name in self._children:
-                    self._wait_exit_code(self._children[name])
+                    self._wait_for_verdict(self._children[name])
                 self._report_died(name)
 
     def _check_processes(self) -> None:
@@ -98,9 +97,11 @@ class Watchdog:
                  f"(process stopped or not responding)")
         self._wake(name, Kind.TIMEOUT, seq, name, cause)
 
-    def _wait_exit_code(self, child: ChildProcess) -> None:
-        end = time.monotonic() + EXIT_CODE_WAIT_S
-        while child.exit_code() is None and time.monotonic() < end:
+    def _wait_for_verdict(self, child: ChildProcess) -> None:
+        """After a token vanished: until how the process ended is known, at most the
+        child's `verdict_wait_s` (then the message says it went silent)."""
+        end = time.monotonic() + child.verdict_wait_s
+        while not child.end_known() and time.monotonic() < end:
             time.sleep(0.005)
 
     def _report_died(self, name: str) -> None:
