@@ -49,21 +49,32 @@ FAULT_TICK, FAULT_T = 20, 0.2
 SEGFAULT, ABORT, EXIT, HANG, FATAL, ERROR, TERMINATE = 1, 2, 3, 4, 5, 6, 7
 
 
-def run_cosim(tmp_path: Path, text: str, *options: str, interrupt_after: float | None = None):
-    """`cosim run` in its own session; (process result, run folder, processes left)."""
+def run_cosim(tmp_path: Path, text: str, *options: str, interrupt_at_row: int | None = None):
+    """`cosim run` in its own session, Ctrl-C'd once signals.csv's spool counts
+    `interrupt_at_row` rows (and half a second more); (process result, run folder,
+    processes left)."""
     scenario, out = tmp_path / "s.yaml", tmp_path / "run"
     scenario.write_text(text)
     env = {**os.environ, "PYTHONPATH": str(REPO_ROOT)}
     proc = subprocess.Popen([str(COSIM), "run", str(scenario), "--out", str(out), "--no-figures",
                              *options], cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
-    if interrupt_after is not None:
-        _wait_for(lambda: (out / "signals.f64").exists(), 60)
-        time.sleep(interrupt_after)
+    if interrupt_at_row is not None:
+        _wait_for(lambda: _spool_rows(out / "signals.f64") >= interrupt_at_row, 60)
+        time.sleep(0.5)
         os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C does
     stdout, stderr = proc.communicate(timeout=120)
     left = _leftovers(proc.pid, out)
     return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr), out, left
+
+
+def _spool_rows(spool: Path) -> int:
+    """The complete rows a spool counts (its first 8 bytes), 0 before it exists."""
+    try:
+        with open(spool, "rb") as f:
+            return int.from_bytes(f.read(8), sys.byteorder, signed=True)
+    except OSError:
+        return 0
 
 
 def _wait_for(condition, timeout_s: float) -> None:
@@ -209,7 +220,8 @@ def test_a_segfault_in_the_master_is_reported_by_the_supervisor(tmp_path):
 def test_ctrl_c_ends_a_run_hung_in_an_fmu_call(tmp_path, faulty_fmus, isolate):
     text = SCENARIO.format(fmu=faulty_fmus["Faulty", 2], mode=HANG, isolate=str(isolate).lower())
     text = text.replace("deadline: 1.0", "deadline: 600")
-    done, out, left = run_cosim(tmp_path, text, "--transport", "inproc", interrupt_after=1.0)
+    done, out, left = run_cosim(tmp_path, text, "--transport", "inproc",
+                                interrupt_at_row=FAULT_TICK)  # hung in tick 20's step
     assert done.returncode == 1, done.stderr
     last = done.stderr.strip().splitlines()[-1]
     assert last.startswith("run failed: interrupted by the user (Ctrl-C)"), last
