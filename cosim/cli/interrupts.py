@@ -14,6 +14,7 @@ import sys
 
 
 def _early_interrupt(signum: int, frame: object) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # exiting: a second Ctrl-C prints nothing more
     running = sys.argv[1:2] == ["run"]
     sys.stderr.write("run failed: interrupted before tick 0\n" if running else "cosim: interrupted\n")
     raise SystemExit(1)

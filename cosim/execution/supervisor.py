@@ -118,19 +118,19 @@ def fork_supervisor() -> int | None:
         return None
     startup_gc.resume()  # it lasts as long as the run: collect, whatever the command's start chose
     try:
-        return Supervisor(pid, page).run()
+        return Supervisor(pid, page, subreaper).run()
     finally:
         _end_leftovers(pid, subreaper)
-        while signal.sigtimedwait(FORWARDED, 0) is not None:
-            pass  # one that came after the master ended: not raised here once unblocked
+        for signo in FORWARDED:  # the command only exits now: a late Ctrl-C changes nothing
+            signal.signal(signo, signal.SIG_IGN)
         signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
 
 
 class Supervisor:
     """Waits for the master `pid`, watching its breadcrumb on `page` (see the module)."""
 
-    def __init__(self, pid: int, page: ControlPage) -> None:
-        self.pid, self.page = pid, page
+    def __init__(self, pid: int, page: ControlPage, subreaper: bool = False) -> None:
+        self.pid, self.page, self.subreaper = pid, page, subreaper
         self.word, self.since = 0, time.monotonic()  # the breadcrumb and when it last changed
         self.interrupted: tuple[float, str] | None = None  # (when, by what)
         self._table: dict[str, Any] | None = None
@@ -142,14 +142,28 @@ class Supervisor:
             info = signal.sigtimedwait(watched, POLL_S)
             if info is not None and info.si_signo != signal.SIGCHLD:
                 self._forward(info.si_signo)
-            done, status = os.waitpid(self.pid, os.WNOHANG)
-            if done:
+            status = self._reap()
+            if status is not None:
                 return self._ended(status)
             verdict = self._check(time.monotonic())
             if verdict is not None:
                 os.kill(self.pid, signal.SIGKILL)
                 os.waitpid(self.pid, 0)
                 return self._complete(verdict)
+
+    def _reap(self) -> int | None:
+        """Reap every child that ended (the master, and orphans adopted as its subreaper,
+        which would stay zombies until the run ends); the master's wait status once it ended."""
+        master = None
+        while True:
+            try:
+                pid, status = os.waitpid(-1, os.WNOHANG)
+            except ChildProcessError:
+                return master
+            if pid == 0:
+                return master
+            if pid == self.pid:
+                master = status
 
     def _forward(self, signo: int) -> None:
         if self.interrupted is None:
@@ -231,6 +245,7 @@ class Supervisor:
         writer = self.page.words[WRITER_PID]
         if writer > 0:
             _kill(writer)  # the folder is rebuilt here: its conversion would be wasted
+        _end_leftovers(self.pid, self.subreaper)  # first: the salvage may take a while
         folder = self.page.folder()
         try:
             message = complete_run_folder(folder, verdict)
@@ -281,29 +296,53 @@ def _become_subreaper() -> bool:
 def _end_leftovers(group: int, adopted: bool) -> None:
     """End what the master (leader of process group `group`, already reaped) left running:
     that group and, when this process is a subreaper (`adopted`), the orphans it
-    adopted. SIGTERM (and SIGCONT, for a stopped one), SIGKILL after
-    `LEFTOVER_GRACE_S`; adopted ones are reaped, so none is left once this returns."""
-    if not _left(group, adopted):
+    adopted, down any chain (a child adopted late is signalled on the next pass).
+    SIGTERM (and SIGCONT, for a stopped one), SIGKILL after `LEFTOVER_GRACE_S`; adopted
+    ones are reaped. Once the group is empty its id is never signalled again (it may be reused)."""
+    leftovers = _Leftovers(group, adopted)
+    if not leftovers.running():
         return  # the usual end: nothing
-    for signo in (signal.SIGTERM, signal.SIGCONT):
-        _signal_all(group, adopted, signo)
-    end = time.monotonic() + LEFTOVER_GRACE_S
-    while _left(group, adopted) and time.monotonic() < end:
-        time.sleep(0.02)
-    _signal_all(group, adopted, signal.SIGKILL)
-    end = time.monotonic() + REAP_WAIT_S
-    while _left(group, adopted) and time.monotonic() < end:
-        time.sleep(0.005)
+    for signos, wait_s in (((signal.SIGTERM, signal.SIGCONT), LEFTOVER_GRACE_S),
+                           ((signal.SIGKILL,), REAP_WAIT_S)):
+        end = time.monotonic() + wait_s
+        while leftovers.running() and time.monotonic() < end:
+            for signo in signos:
+                leftovers.signal(signo)
+            time.sleep(0.01)
 
 
-def _left(group: int, adopted: bool) -> bool:
-    """Whether a process of `group`, or an adopted child, still runs (ended children reaped)."""
-    child_running = adopted and _reap_children()
-    try:
-        os.killpg(group, 0)
-    except (ProcessLookupError, PermissionError):
+class _Leftovers:
+    """The master's process group and this process's adopted children, as `_end_leftovers` ends them."""
+
+    def __init__(self, group: int, adopted: bool) -> None:
+        self.group: int | None = group  # None once it is empty
+        self.adopted = adopted
+        self.sent: set[tuple[int, int]] = set()  # (signal, pid or -group): each sent once
+
+    def running(self) -> bool:
+        """Whether a process of the group, or an adopted child, still runs (ended children reaped)."""
+        child_running = self.adopted and _reap_children()
+        if self.group is not None:
+            try:
+                os.killpg(self.group, 0)
+                return True
+            except (ProcessLookupError, PermissionError):
+                self.group = None
         return child_running
-    return True
+
+    def signal(self, signo: int) -> None:
+        """Send `signo` once to the group (while it has members) and to each adopted child
+        that has not had it (one adopted since the last call has not)."""
+        if self.group is not None and (signo, -self.group) not in self.sent:
+            self.sent.add((signo, -self.group))
+            try:
+                os.killpg(self.group, signo)
+            except (ProcessLookupError, PermissionError):
+                self.group = None
+        for pid in _children() if self.adopted else ():
+            if (signo, pid) not in self.sent:
+                self.sent.add((signo, pid))
+                _signal(pid, signo)
 
 
 def _reap_children() -> bool:
@@ -315,15 +354,6 @@ def _reap_children() -> bool:
             return False
         if pid == 0:
             return True
-
-
-def _signal_all(group: int, adopted: bool, signo: int) -> None:
-    try:
-        os.killpg(group, signo)
-    except (ProcessLookupError, PermissionError):
-        pass
-    for pid in _children() if adopted else ():
-        _signal(pid, signo)
 
 
 def _children() -> list[int]:

@@ -96,7 +96,12 @@ def test_watching_a_run_from_a_second_process_prints_the_recorded_values(tmp_pat
         run.send_signal(signal.SIGINT)
         assert run.wait(timeout=60) == 1  # interrupted: the run folder holds what it did
     finally:
-        run.kill()
+        if run.poll() is None:  # a failure above: end the run as a user would, not by SIGKILL
+            run.send_signal(signal.SIGINT)  # (the master and its processes would outlive it)
+            try:
+                run.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                run.kill()
     assert watcher.returncode == 0, watcher.stderr
     assert f"watching run {run_id} at {endpoint}" in watcher.stderr
     assert "ended" not in watcher.stderr  # it stopped after --count lines

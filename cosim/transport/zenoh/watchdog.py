@@ -78,7 +78,7 @@ class Watchdog:
         while (sample := self._tokens.try_recv()) is not None:
             if sample.kind == zenoh.SampleKind.DELETE:
                 name = str(sample.key_expr).rsplit("/", 1)[-1]
-                if name in self._children:
+                if name in self._children and name not in self.finished and name not in self.dead:
                     self._wait_for_verdict(self._children[name])
                 self._report_died(name)
 
