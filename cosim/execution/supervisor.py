@@ -142,7 +142,7 @@ class Supervisor:
             info = signal.sigtimedwait(watched, POLL_S)
             if info is not None and info.si_signo != signal.SIGCHLD:
                 self._forward(info.si_signo)
-            status = self._reap()
+            status = _reap_children(self.pid)[1]  # adopted orphans too: no zombie piles up
             if status is not None:
                 return self._ended(status)
             verdict = self._check(time.monotonic())
@@ -150,20 +150,6 @@ class Supervisor:
                 os.kill(self.pid, signal.SIGKILL)
                 os.waitpid(self.pid, 0)
                 return self._complete(verdict)
-
-    def _reap(self) -> int | None:
-        """Reap every child that ended (the master, and orphans adopted as its subreaper,
-        which would stay zombies until the run ends); the master's wait status once it ended."""
-        master = None
-        while True:
-            try:
-                pid, status = os.waitpid(-1, os.WNOHANG)
-            except ChildProcessError:
-                return master
-            if pid == 0:
-                return master
-            if pid == self.pid:
-                master = status
 
     def _forward(self, signo: int) -> None:
         if self.interrupted is None:
@@ -321,7 +307,7 @@ class _Leftovers:
 
     def running(self) -> bool:
         """Whether a process of the group, or an adopted child, still runs (ended children reaped)."""
-        child_running = self.adopted and _reap_children()
+        child_running = self.adopted and _reap_children()[0]
         if self.group is not None:
             try:
                 os.killpg(self.group, 0)
@@ -345,15 +331,19 @@ class _Leftovers:
                 _signal(pid, signo)
 
 
-def _reap_children() -> bool:
-    """Reap every child that has ended; whether one still runs."""
+def _reap_children(master: int = -1) -> tuple[bool, int | None]:
+    """Reap every child that has ended (orphans adopted as subreaper among them):
+    (whether a child still runs, the wait status of `master` if it was one of them)."""
+    status = None
     while True:
         try:
-            pid, _ = os.waitpid(-1, os.WNOHANG)
+            pid, code = os.waitpid(-1, os.WNOHANG)
         except ChildProcessError:
-            return False
+            return False, status
         if pid == 0:
-            return True
+            return True, status
+        if pid == master:
+            status = code
 
 
 def _children() -> list[int]:
