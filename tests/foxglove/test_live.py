@@ -20,6 +20,7 @@ from tests.helpers.paths import SCENARIOS_DIR
 
 SUBPROTOCOL = "foxglove.sdk.v1"   # the SDK server speaks this (the v1 protocol under a new name)
 WAIT_S = 30.0   # a bound on every wait, never an assertion on time
+UNKNOWN_CHANNEL = "Unknown channel ID: "  # the server's status for a refused subscription
 
 
 class Gate:
@@ -51,6 +52,11 @@ def client(url: str, gate: Gate, found: dict) -> None:
                 found.setdefault("ops", []).append(op["op"])
                 for ch in op.get("channels", []) if op["op"] == "advertise" else []:
                     channels[ch["id"]] = ch
+                if op["op"] == "status" and op.get("message", "").startswith(UNKNOWN_CHANNEL):
+                    # the SDK's server sends an advertisement before it registers the channel
+                    # for the client: a subscription in between is refused; subscribe again
+                    refused = int(op["message"][len(UNKNOWN_CHANNEL):])
+                    subscribed.pop(100 + refused, None)
                 wanted = [c for c in channels.values() if c["topic"] in ("/tf", "/signals/vehicle", "/scene/road")
                           and c["topic"] not in subscribed.values()]  # once each: a repeat draws a status
                 if wanted:
