@@ -103,10 +103,18 @@ def _running(pid: int) -> bool:
 def _run(tmp_path: Path, transport: str, **scenario: str) -> subprocess.CompletedProcess:
     (tmp_path / "dropper.py").write_text(DROPPER)
     (tmp_path / "s.yaml").write_text(SCENARIO.format(**scenario))
-    return subprocess.run([str(COSIM), "run", str(tmp_path / "s.yaml"), "--out",
-                           str(tmp_path / "run"), "--no-figures", "--transport", transport],
-                          cwd=REPO_ROOT, capture_output=True, text=True, timeout=120,
-                          start_new_session=True)
+    proc = subprocess.Popen([str(COSIM), "run", str(tmp_path / "s.yaml"), "--out",
+                             str(tmp_path / "run"), "--no-figures", "--transport", transport],
+                            cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    try:
+        stdout, stderr = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:  # end the whole session: the master has a group of its own
+        for pid in subprocess.run(["pgrep", "-s", str(proc.pid)], capture_output=True,
+                                  text=True).stdout.split():
+            os.kill(int(pid), 9)
+        raise
+    return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
 
 
 @pytest.mark.parametrize("transport", ["inproc", "zenoh"])
