@@ -8,7 +8,6 @@ import os
 import signal
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +15,7 @@ import pytest
 from cosim.errors import ComponentFailure, UserError
 from cosim.transport.inproc import InprocComponent
 from cosim.transport.zenoh import ZenohComponents
+from cosim.transport.zenoh.processes import process_state
 from tests.helpers.components import launch, run_processes
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(60)]
@@ -77,11 +77,7 @@ def _wait_until_dead(pid: int) -> None:
     race the host's watchdog, which polls the same child)."""
     end = time.monotonic() + 10
     while time.monotonic() < end:
-        try:
-            state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
-        except OSError:
-            return
-        if state in ("Z", "X"):
+        if process_state(pid) in ("", "Z", "X"):
             return
         time.sleep(0.001)
     raise AssertionError(f"process {pid} still alive 10 s after SIGKILL")

@@ -207,13 +207,18 @@ def file_tail(log: Any, chars: int) -> str:
         return ""
 
 
-def process_stopped(pid: int) -> bool:
-    """Whether process `pid` is stopped (SIGSTOP, SIGTSTP, a debugger), from /proc."""
+def process_state(pid: int) -> str:
+    """The state letter of process `pid` from /proc ("R", "S", "T", "Z", ...); "" when it is gone."""
     try:
         stat_line = Path(f"/proc/{pid}/stat").read_text()
     except OSError:
-        return False
-    return stat_line.rpartition(")")[2].split()[:1] in (["T"], ["t"])
+        return ""
+    return stat_line.rpartition(")")[2].split()[0]
+
+
+def process_stopped(pid: int) -> bool:
+    """Whether process `pid` is stopped (SIGSTOP, SIGTSTP, a debugger), from /proc."""
+    return process_state(pid) in ("T", "t")
 
 
 def reap(children: list[ChildProcess], grace_s: float) -> None:

@@ -43,6 +43,7 @@ from cosim.component import Component, values_step
 from cosim.errors import UserError
 from cosim.transport.inproc import (ParameterProblem, PythonComponentLaunch, construct_component,
                           describe_exception)
+from cosim.engine import one_cpu
 from cosim.engine.startup import process_age_s
 from cosim.transport.launch import steps_from_json
 from cosim.engine.values import lane_result_problem
@@ -103,7 +104,7 @@ class _Server:
             # its thread waits between steps: a compiled part may load beside them, on a CPU
             # beside the lockstep chain's (not on a sweep worker's one CPU: there it would
             # share that CPU with the chain, and the whole run would take longer)
-            self.component = construct_component(launch, load_beside=_cpus() > 1)
+            self.component = construct_component(launch, load_beside=bool(one_cpu.cpus_beside()))
         except ParameterProblem as exc:
             self.build_error = str(exc)
             self.build_detail = {"parameter": exc.parameter, "problem": exc.problem}
@@ -201,14 +202,6 @@ class _Server:
             cause = f"finish() failed: {describe_exception(exc)}"
             return encode_json(Kind.ERROR, seq, tick, t, {"cause": cause})
         return encode_json(Kind.METRICS, seq, tick, t, document)
-
-
-def _cpus() -> int:
-    """How many CPUs this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # no affinity on this platform
-        return os.cpu_count() or 1
 
 
 def _exit_when_master_gone(session: zenoh.Session, run_id: str) -> None:
