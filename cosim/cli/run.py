@@ -28,6 +28,7 @@ from cosim.execution.figure_process import FigureProcess
 from cosim.execution.finish import analyse_run_folder  # shared with cosim.run (the Python API)
 from cosim.scenario.shipped import resolve_scenario
 from cosim.execution.limits import DEFAULT_MAX_TICKS, RunLimits
+from cosim.transport.launch import STARTUP_TIMEOUT_S
 
 DEFAULT_TRANSPORT = "zenoh"  # DESIGN.md: each Python component its own OS process
 EXIT_FAILED_RUN = 1
@@ -63,6 +64,10 @@ def run(
     deadline: float = typer.Option(10.0, "--deadline",
                                    help="deadline of a component call (FMI call, step, remote "
                                         "exchange), s; a component's `deadline:` overrides it"),
+    startup_timeout: float = typer.Option(
+        STARTUP_TIMEOUT_S, "--startup-timeout",
+        help="longest a Python component may take to start (its process and handshake, or its "
+             "constructor in the master's process), s"),
     prestart: bool = typer.Option(True, "--prestart/--no-prestart",
                                   help="start component processes while the scenario loads"),
     mcap: bool = typer.Option(False, "--mcap", help="also write run.mcap (as record: {mcap: true})"),
@@ -102,7 +107,7 @@ def run(
     if scenario is None:
         raise _list_shipped()
     try:
-        check_run_options(transport, realtime)  # option errors come before anything else
+        check_run_options(transport, realtime, deadline, startup_timeout)  # before anything else
         scenario_file = resolve_scenario(scenario)
         if mcap:
             from cosim.cli.foxglove import require_foxglove
@@ -126,7 +131,8 @@ def run(
                                 (foxglove, foxglove_host), prestart and transport == "zenoh"
                                 and not (place or listen or connect or deploy),
                                 transport=transport, realtime=realtime, place=place,
-                                deadline_s=deadline, limits=limits, fmu_log=fmu_log,
+                                deadline_s=deadline, startup_timeout_s=startup_timeout,
+                                limits=limits, fmu_log=fmu_log,
                                 strict=strict, lockstep_cpu=chain_setting,
                                 at_tick0=functools.partial(_tick0_done, drawer))
         with _sigterm_interrupts():  # a SIGTERM while drawing ends the drawing process too

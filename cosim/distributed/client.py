@@ -32,7 +32,7 @@ from cosim.distributed.deploy import (DeploySettings, session_mode, to_zenoh_con
                                       zenoh_settings)
 from cosim.errors import ComponentFailure, UserError
 from cosim.fmu.remote import FMU_HOST_CLASS, fmu_payload
-from cosim.transport.inproc import PythonComponentLaunch
+from cosim.transport.launch import STARTUP_TIMEOUT_S, PythonComponentLaunch
 from cosim.transport.zenoh import config
 from cosim.transport.zenoh.auth import Credential, run_acl
 from cosim.transport.zenoh.host import ZenohComponents
@@ -248,7 +248,7 @@ class DistributedComponents(ZenohComponents):
     def __init__(self, specs: Sequence[PythonComponentLaunch], run_id: str,
                  deadline_s: float = 5.0, *, placement: Mapping[str, str] | None = None,
                  settings: DeploySettings | None = None,
-                 startup_timeout_s: float = 20.0) -> None:
+                 startup_timeout_s: float = STARTUP_TIMEOUT_S) -> None:
         self.settings = settings or DeploySettings()
         self.placement = dict(placement or {})
         unknown = sorted(set(self.placement) - {s.name for s in specs})

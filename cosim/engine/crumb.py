@@ -1,7 +1,8 @@
 """The master's breadcrumb: one 64-bit word saying which component call is under way.
 
 The master writes it before every call of a component and clears it when the
-tick's calls are done (`cosim.engine.master`); a supervisor in another process
+tick's calls are done (`cosim.engine.master`), and the run around each
+constructor of a component in its process (`cosim.execution.run`); a supervisor in another process
 reads it through shared memory (`cosim.execution.supervisor`) to name the
 component, the call and the tick when the master dies or hangs in native code.
 No imports: the supervisor loads this module alone.
@@ -10,7 +11,8 @@ No imports: the supervisor loads this module alone.
 from __future__ import annotations
 
 CALL_START, CALL_STEP, CALL_STOP = 1, 2, 3  # kinds of call
-CALLS = {CALL_START: "start", CALL_STEP: "step", CALL_STOP: "stop"}
+CALL_BUILD = 4  # an in-process component's constructor, before the master exists
+CALLS = {CALL_START: "start", CALL_STEP: "step", CALL_STOP: "stop", CALL_BUILD: "constructor"}
 
 
 def crumb_code(index: int, call: int, tick: int = 0) -> int:

@@ -63,6 +63,25 @@ def write_start_failure(out: Path, scenario: Any, run_id: str, transport: str,
         pass
 
 
+def write_pending_manifest(out: Path, scenario: Any, run_id: str, transport: str,
+                           startup: dict[str, Any]) -> None:
+    """Write out/manifest.json with status "running" before tick 0's own manifest: what a
+    supervisor completes if the master dies first (in a component's constructor).
+
+    Args: as `write_start_failure`, without the error.
+    """
+    from cosim.results.manifest import run_identity
+    from cosim.results.recorder import write_json
+
+    write_json(out / "manifest.json", {
+        **run_identity(scenario, run_id, transport, "running", None, "started_utc"),
+        "ticks": 0,
+        "sim_time_s": 0.0,
+        "time_to_tick0_s": None,
+        "startup": startup,
+    })
+
+
 def _final_status(manifest_path: Path) -> str | None:
     """The status of a finished run's manifest; None if absent, unreadable or "running"."""
     import json

@@ -27,8 +27,9 @@ from typing import TYPE_CHECKING, Any
 
 from cosim.errors import UserError
 from cosim.execution import fmu_hosting, supervisor
-from cosim.transport.launch import PythonComponentLaunch
-from cosim.execution.abort import locate_parameter_problem, start_failure_text, write_start_failure
+from cosim.transport.launch import STARTUP_TIMEOUT_S, PythonComponentLaunch
+from cosim.execution.abort import (locate_parameter_problem, start_failure_text,
+                                   write_pending_manifest, write_start_failure)
 from cosim.execution.limits import RunLimits, check_formats, check_recorded_size, check_ticks
 from cosim.execution.prepare import PreparedRun, component_names, plan_fmu, plan_fmus, plan_launches
 from cosim.engine import one_cpu
@@ -91,7 +92,8 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  on_warning: Callable[[str], None] | None = None,
                  before_tick0: Callable[[], None] | None = None,
                  at_tick0: Callable[[], None] | None = None,
-                 lockstep_cpu: str | int = "auto", runs_in_process: int | None = None) -> RunResult:
+                 lockstep_cpu: str | int = "auto", runs_in_process: int | None = None,
+                 startup_timeout_s: float = STARTUP_TIMEOUT_S) -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -139,13 +141,16 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             told theirs; an estimate when the runs differ in length (a sweep that varies
             the duration or a period); None (a Python session, a cluster that outlives
             the sweep): unknown, not told. At least 1.
+        startup_timeout_s: the longest a component may take to start: a component
+            process's start and handshake, or the constructor of a component in this
+            process (a supervised run's supervisor ends the master past it).
     Returns:
         RunResult; status "failed" with the error message when a component
         failed mid-run (the folder then holds everything up to the last tick).
     Raises:
         UserError for anything wrong before tick 0 (scenario, FMU, wiring).
     """
-    check_run_options(transport, realtime)
+    check_run_options(transport, realtime, deadline_s, startup_timeout_s)
     runs_in_process = _count_of_runs(runs_in_process)
     one_cpu.check_setting(lockstep_cpu, "lockstep_cpu")
     limits = limits or RunLimits()
@@ -172,15 +177,16 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                 on_folder(out)
             remote = None
             if transport == "zenoh" and remote_launches:  # spawned before the FMUs load: start-ups overlap
-                remote = _spawn_remote(remote_launches, run_id, deadline_s, placement, deploy, stack,
-                                       prestart, clock, on_live)
+                remote = _spawn_remote(remote_launches, run_id, (deadline_s, startup_timeout_s),
+                                       placement, deploy, stack, prestart, clock, on_live)
             all_fmus = plan_fmus(scenario)
             local_fmus = [p for p in all_fmus if p.name not in placement]
             prepared = PreparedRun(scenario, local_fmus, launches, component_names(scenario),
                                    placement, deploy, limits)
             options = _Options(fmu_hosting.start_time(scenario, all_fmus),
                                fmu_hosting.deadlines(scenario, prepared.names, deadline_s),
-                               fmu_log, page, tuple(observers), chain, runs_in_process, at_tick0)
+                               fmu_log, page, tuple(observers), chain, runs_in_process, at_tick0,
+                               startup_timeout_s, (run_id, transport))
             hosted = _host_components(prepared, remote, in_master, clock, out, options)
             _check_gaps(scenario, hosted, all_fmus, strict, on_warning)
             if before_tick0 is not None:
@@ -210,6 +216,8 @@ class _Options:
     chain: Any = None  # cosim.engine.one_cpu.PinnedChain: the CPU of the lockstep chain
     runs_in_process: int | None = None  # most runs this process hosts (see run_scenario)
     at_tick0: Callable[[], None] | None = None  # see run_scenario
+    startup_timeout_s: float = STARTUP_TIMEOUT_S  # the deadline of a constructor here
+    identity: tuple[str, str] = ("", "inproc")  # (run id, transport), for a manifest before hosting
 
 
 def _make_run_folder(out: Path) -> Path:
@@ -236,12 +244,17 @@ def _count_of_runs(runs: Any) -> int | None:
     return count
 
 
-def check_run_options(transport: str, realtime: float | None) -> None:
-    """Reject an unknown transport or a non-positive real-time factor (UserError).
+def check_run_options(transport: str, realtime: float | None,
+                      deadline_s: float = DEFAULT_DEADLINE_S,
+                      startup_timeout_s: float = STARTUP_TIMEOUT_S) -> None:
+    """Reject an unknown transport, a non-positive real-time factor, deadline or start-up
+    timeout (UserError).
 
     Args:
         transport: the `--transport` value.
         realtime: the `--realtime` factor, or None.
+        deadline_s: the `--deadline`, s.
+        startup_timeout_s: the `--startup-timeout`, s.
     """
     if transport not in TRANSPORTS:
         raise UserError(f"unknown transport {transport!r} "
@@ -249,6 +262,9 @@ def check_run_options(transport: str, realtime: float | None) -> None:
     if realtime is not None and not MIN_REALTIME <= realtime < float("inf"):
         raise UserError(f"--realtime factor must be a number from {MIN_REALTIME:g} "
                         f"(1000 times slower than real time) up, got {realtime!r}")
+    for option, seconds in (("--deadline", deadline_s), ("--startup-timeout", startup_timeout_s)):
+        if not 0.0 < seconds < float("inf"):
+            raise UserError(f"{option} must be a positive number of seconds, got {seconds!r}")
 
 
 def _placement(scenario: Any, place: Sequence[str], transport: str) -> dict[str, str]:
@@ -297,14 +313,16 @@ def _placed_fmu_launches(scenario: Any, placement: dict[str, str]) -> list[Pytho
                        p.period_ticks) for p in plans]
 
 
-def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s: float,
-                  placement: dict[str, str], deploy: Any, stack: contextlib.ExitStack,
-                  prestart: Any, clock: StartupClock,
+def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str,
+                  timeouts: tuple[float, float], placement: dict[str, str], deploy: Any,
+                  stack: contextlib.ExitStack, prestart: Any, clock: StartupClock,
                   on_live: Callable[[str, str], None] | None) -> Any:
     """Start the component processes (without waiting for them); closed with `stack`.
 
-    Marks "spawned" on `clock`, then tells `on_live` where the run can be watched.
+    `timeouts`: (call deadline, start-up timeout), s. Marks "spawned" on `clock`, then
+    tells `on_live` where the run can be watched.
     """
+    deadline_s, startup_s = timeouts
     try:
         from cosim.transport.zenoh import ZenohComponents
     except ImportError as exc:
@@ -314,12 +332,13 @@ def _spawn_remote(launches: list[PythonComponentLaunch], run_id: str, deadline_s
         from cosim.distributed.client import DistributedComponents
 
         remote = DistributedComponents(launches, run_id, deadline_s, placement=placement,
-                                       settings=deploy)
+                                       settings=deploy, startup_timeout_s=startup_s)
     elif prestart is not None:
         remote = ZenohComponents(launches, run_id, deadline_s, prestart.endpoint,
-                                 prestarted=prestart.children, credential=prestart.credential)
+                                 prestarted=prestart.children, credential=prestart.credential,
+                                 startup_timeout_s=startup_s)
     else:
-        remote = ZenohComponents(launches, run_id, deadline_s)
+        remote = ZenohComponents(launches, run_id, deadline_s, startup_timeout_s=startup_s)
     stack.callback(remote.close)
     remote.spawn()
     clock.mark("spawned")
@@ -351,18 +370,37 @@ def _host_components(prepared: PreparedRun, remote: Any, in_master: set[str], cl
     clock.mark("fmus_ready")
     here = [launch for launch in prepared.launches if remote is None or launch.name in in_master]
     if here:
-        from cosim.transport.inproc import InprocComponent
-
         runs = options.runs_in_process  # None: this process may run again, the run's steps say little
         here = [dataclasses.replace(launch, steps=None if runs is None or launch.steps is None
                                     else launch.steps * runs) for launch in here]
-        hosted.update({launch.name: InprocComponent(launch) for launch in here})
+        hosted.update(_construct_here(here, prepared.scenario, clock, out, options))
     if remote is not None:
         _preload()
         hosted.update(remote.wait_ready())
     fmu_hosting.wait_ready(hosted)
     clock.mark("components_ready")
     return {name: hosted[name] for name in prepared.names}
+
+
+def _construct_here(launches: list[PythonComponentLaunch], scenario: Any, clock: StartupClock,
+                    out: Path, options: _Options) -> dict[str, Any]:
+    """Construct the Python components hosted in this process; name -> InprocComponent.
+
+    Supervised, each constructor is a call with the start-up timeout as its deadline,
+    and a manifest (status "running") is written first, which the supervisor completes
+    if a constructor kills or hangs this process.
+    """
+    from cosim.transport.inproc import InprocComponent
+
+    page = options.page
+    if page is None:
+        return {launch.name: InprocComponent(launch) for launch in launches}
+    write_pending_manifest(out, scenario, *options.identity, clock.as_dict())
+    built = {}
+    for index, launch in enumerate(launches):
+        with page.constructing(index, launch.name, options.startup_timeout_s):
+            built[launch.name] = InprocComponent(launch)
+    return built
 
 
 def _check_gaps(scenario: Any, hosted: dict[str, Any], plans: list[Any], strict: bool,

@@ -4,10 +4,12 @@ Native FMU code runs inside the master's process: a segfault, `abort()` or
 `exit()` there kills the master, a doStep that never returns hangs it. So
 `cosim run` forks once, early (before any thread or component process exists,
 about a millisecond): the child is the master and runs the command; the
-parent, this module, only waits. They share one anonymous memory page
+parent, this module, only waits. They share anonymous memory
 (`ControlPage`): the master writes there its run folder, the CSV writer's
 pid, a phase, and before every component call the breadcrumb of
-`cosim.engine.master` (component, call, tick; a memory write, nearly free).
+`cosim.engine.master` (component, call, tick; a memory write, nearly free);
+around the constructor of a component in its own process it writes the
+component's name and its start-up deadline too (there is no manifest table yet).
 
 Every `POLL_S` and on every signal the supervisor reads the breadcrumb:
 
@@ -17,7 +19,8 @@ Every `POLL_S` and on every signal the supervisor reads the breadcrumb:
   failed and the cause), ends what the master left running, prints one line
   naming the component, tick, time and signal, and exits 1;
 - a call of a local component (an FMU in the master, an in-process Python
-  component) lasts longer than its deadline: the supervisor kills the master
+  component, its constructor included) lasts longer than its deadline: the
+  supervisor kills the master
   and reports the same way (components in other processes have their own
   deadline in the master; the supervisor gives them a margin more);
 - Ctrl-C, SIGTERM and SIGHUP are forwarded to the master (which has its own
@@ -35,20 +38,23 @@ is too), plus the salvage, loaded only when needed.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import mmap
 import os
 import signal
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from cosim import startup_gc
 
-PAGE_BYTES = 4096
-CRUMB, PHASE, FOLDER_LEN, WRITER_PID = 0, 1, 2, 3  # int64 words of the page
-FOLDER_AT = 64  # the run folder's path, UTF-8, from this byte
+PAGE_BYTES = 8192
+CRUMB, PHASE, FOLDER_LEN, WRITER_PID, BUILD_DEADLINE_MS, BUILD_NAME_LEN = range(6)  # int64 words
+FOLDER_AT = 64  # the run folder's path, UTF-8, from this byte up to BUILD_NAME_AT
+BUILD_NAME_AT = 4096  # the name of the component under construction, UTF-8
 STARTING, RUNNING, DONE = 0, 1, 2  # phases: before the folder, folder announced, final manifest
 POLL_S = 0.05
 INTERRUPT_GRACE_S = 0.5
@@ -73,10 +79,31 @@ class ControlPage:
 
     def announce(self, folder: Path) -> None:
         """The run folder exists (phase running)."""
-        data = str(Path(folder).resolve()).encode("utf-8")[:PAGE_BYTES - FOLDER_AT]
+        data = str(Path(folder).resolve()).encode("utf-8")[:BUILD_NAME_AT - FOLDER_AT]
         self.map[FOLDER_AT:FOLDER_AT + len(data)] = data
         self.words[FOLDER_LEN] = len(data)
         self.words[PHASE] = RUNNING
+
+    @contextlib.contextmanager
+    def constructing(self, index: int, name: str, deadline_s: float) -> Iterator[None]:
+        """Component `name` (`index`: its place among those built here) is being
+        constructed in the master's process: a call that must end within `deadline_s`."""
+        from cosim.engine.crumb import CALL_BUILD, crumb_code
+
+        data = name.encode("utf-8")[:PAGE_BYTES - BUILD_NAME_AT]
+        self.map[BUILD_NAME_AT:BUILD_NAME_AT + len(data)] = data
+        self.words[BUILD_NAME_LEN] = len(data)
+        self.words[BUILD_DEADLINE_MS] = max(1, round(deadline_s * 1000.0))
+        self.words[CRUMB] = crumb_code(index, CALL_BUILD)
+        try:
+            yield
+        finally:
+            self.words[CRUMB] = 0
+
+    def constructed_name(self) -> str:
+        """The component whose constructor the master entered last."""
+        size = self.words[BUILD_NAME_LEN]
+        return self.map[BUILD_NAME_AT:BUILD_NAME_AT + size].decode("utf-8", "replace")
 
     def note_writer(self, pid: int) -> None:
         """The CSV writer process started (ended by the supervisor if the master dies)."""
@@ -182,8 +209,10 @@ class Supervisor:
     def _deadline(self, index: int, call: int) -> float | None:
         """The deadline of a call; None for the stop of a component in another process
         (its host ends it with its own grace periods and kills)."""
-        from cosim.engine.crumb import CALL_STOP
+        from cosim.engine.crumb import CALL_BUILD, CALL_STOP
 
+        if call == CALL_BUILD:  # before the manifest's table: the page holds it
+            return self.page.words[BUILD_DEADLINE_MS] / 1000.0
         table = self._load_table()
         deadlines, local = table.get("deadlines_s", []), table.get("local", [])
         if index >= len(deadlines) or (call == CALL_STOP and not local[index]):
@@ -226,8 +255,12 @@ class Supervisor:
 
     def _complete(self, verdict: dict[str, Any]) -> int:
         """Complete the run folder after the master's death; print one line; status 1."""
+        from cosim.engine.crumb import CALL_BUILD
         from cosim.results.salvage import complete_run_folder
 
+        call = verdict.get("call")
+        if call is not None and call[1] == CALL_BUILD:
+            verdict["component"] = self.page.constructed_name()
         writer = self.page.words[WRITER_PID]
         if writer > 0:
             _kill(writer)  # the folder is rebuilt here: its conversion would be wasted

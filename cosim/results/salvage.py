@@ -19,7 +19,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from cosim.engine.crumb import CALL_START, CALL_STOP, CALLS
+from cosim.engine.crumb import CALL_BUILD, CALL_START, CALL_STOP, CALLS
 from cosim.errors import ComponentFailure, UserError
 from cosim.results.recorder import SIGNALS_FILE, read_signals, write_json
 from cosim.results.recover import recover
@@ -29,10 +29,12 @@ def complete_run_folder(folder: Path | None, verdict: dict[str, Any]) -> str:
     """Rebuild the CSV files and write the failed manifest; the one-line error.
 
     Args:
-        folder: the run folder (its manifest written before tick 0).
+        folder: the run folder (its manifest written before tick 0, or before the
+            first constructor of a component in the master's process).
         verdict: how the master ended: "kind" ("signal", "exit", "deadline" or
             "interrupted") with "signal", "exit_code", "deadline_s" or "what",
-            and "call": (component index in step order, call kind, tick) or None.
+            and "call": (component index in step order, call kind, tick) or None;
+            for a constructor (call kind CALL_BUILD), "component": its name.
     Returns:
         the error, naming the component, the tick, the time and the cause.
     """
@@ -80,7 +82,9 @@ def _cause(verdict: dict[str, Any], order: list[str], last_tick: int, t0: float,
     """The manifest's "cause": the verdict with names and times instead of indexes."""
     cause = {k: v for k, v in verdict.items() if k != "call"}
     call = verdict.get("call")
-    if call is not None and call[0] < len(order):
+    if call is not None and call[1] == CALL_BUILD:  # its name came with the verdict
+        cause.update(call=CALLS[CALL_BUILD], tick=None, time=t0)
+    elif call is not None and call[0] < len(order):
         index, kind, k = call
         cause.update(component=order[index], call=CALLS.get(kind, "call"),
                      tick=None if kind == CALL_START else k, time=t0 + k * tick)

@@ -11,6 +11,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+# The longest a component may take to start, unless the run says otherwise (`cosim run
+# --startup-timeout`): its process's start and handshake, or its constructor in the master.
+STARTUP_TIMEOUT_S = 20.0
+
 
 @dataclass(frozen=True)
 class PythonComponentLaunch:

@@ -338,3 +338,21 @@ class StepsSeen(Component):
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         return {"steps": self.seen}
+
+
+class ConstructorFault(Component):
+    """A constructor that never returns: it sleeps (`mode` "hang") or crashes its
+    process with a segfault ("segfault")."""
+
+    inputs = (Port("u"),)
+    outputs = (Port("y"),)
+
+    def __init__(self, mode: str = "hang") -> None:
+        if mode == "segfault":
+            import ctypes
+            ctypes.string_at(0)  # reads address 0: SIGSEGV
+        while True:
+            time.sleep(3600)
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        return {"y": inputs["u"]}

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import zenoh
 
 from cosim.errors import ComponentFailure, UserError
-from cosim.transport.launch import PythonComponentLaunch
+from cosim.transport.launch import STARTUP_TIMEOUT_S, PythonComponentLaunch
 from cosim.transport.zenoh import auth, config, runtime
 from cosim.transport.zenoh.auth import Credential, Dictionary, new_credential
 from cosim.transport.zenoh.processes import ChildProcess, reap
@@ -116,7 +116,7 @@ class ZenohComponents:
 
     def __init__(self, specs: Sequence[PythonComponentLaunch], run_id: str,
                  deadline_s: float = 5.0, endpoint: str | None = None, *,
-                 connect: Sequence[str] | None = None, startup_timeout_s: float = 20.0,
+                 connect: Sequence[str] | None = None, startup_timeout_s: float = STARTUP_TIMEOUT_S,
                  prestarted: Mapping[str, ChildProcess] | None = None,
                  credential: Credential | None = None) -> None:
         self.specs = list(specs)
