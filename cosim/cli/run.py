@@ -167,8 +167,8 @@ def _start_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path
                              prestart=early, **run_options)
     except UserError as error:
         raise user_error_exit(error) from None
-    except KeyboardInterrupt:  # Ctrl-C before tick 0 (after it, the run records it itself)
-        raise _interrupted_exit() from None
+    except KeyboardInterrupt as exc:  # Ctrl-C before tick 0 (after it, the run records it itself)
+        raise _interrupted_exit(where=str(exc)) from None
     except Exception as exc:
         if isinstance(exc.__context__, KeyboardInterrupt):
             raise _interrupted_exit(f"{type(exc).__name__}: {exc}") from None  # while stopping
@@ -215,18 +215,20 @@ def check_out_option(out: Optional[str], force: bool) -> Optional[Path]:
     return folder
 
 
-def _interrupted_exit(stop_error: str | None = None) -> typer.Exit:
+def _interrupted_exit(stop_error: str | None = None, where: str = "") -> typer.Exit:
     """Say the run was interrupted before tick 0; the exit of a failed run (status 1).
 
     Args:
         stop_error: an error raised while the interrupted start-up was undone.
+        where: what the run was doing, when known ("in the constructor of component 'x'").
     """
     from rich.console import Console
     from rich.markup import escape
 
     from cosim.execution.abort import INTERRUPTED_BEFORE_TICK0
 
-    note = f" (then, while stopping: {stop_error})" if stop_error else ""
+    note = (f" ({where})" if where else "") + (f" (then, while stopping: {stop_error})"
+                                                if stop_error else "")
     Console(stderr=True, highlight=False, soft_wrap=True).print(
         f"[red]run failed:[/red] {INTERRUPTED_BEFORE_TICK0}{escape(note)}", markup=True)
     return typer.Exit(EXIT_FAILED_RUN)

@@ -393,13 +393,17 @@ def _construct_here(launches: list[PythonComponentLaunch], scenario: Any, clock:
     from cosim.transport.inproc import InprocComponent
 
     page = options.page
-    if page is None:
-        return {launch.name: InprocComponent(launch) for launch in launches}
-    write_pending_manifest(out, scenario, *options.identity, clock.as_dict())
+    if page is not None:
+        write_pending_manifest(out, scenario, *options.identity, clock.as_dict())
     built = {}
     for index, launch in enumerate(launches):
-        with page.constructing(index, launch.name, options.startup_timeout_s):
-            built[launch.name] = InprocComponent(launch)
+        watched = (page.constructing(index, launch.name, options.startup_timeout_s)
+                   if page is not None else contextlib.nullcontext())
+        try:
+            with watched:
+                built[launch.name] = InprocComponent(launch)
+        except KeyboardInterrupt:  # the run's error says where the Ctrl-C came
+            raise KeyboardInterrupt(f"in the constructor of component {launch.name!r}") from None
     return built
 
 

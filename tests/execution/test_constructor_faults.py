@@ -11,10 +11,15 @@ no traceback, a failed manifest, no process left behind.
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
+import time
 
 import pytest
 
-from tests.execution.test_fmu_faults import run_cosim
+from tests.execution.test_fmu_faults import COSIM, run_cosim
+from tests.helpers.paths import REPO_ROOT
 
 SCENARIO = """\
 name: constructor
@@ -93,3 +98,26 @@ def test_a_deadline_or_startup_timeout_must_be_a_positive_number(tmp_path, optio
     assert done.stderr.strip() == (f"error: {option} must be a positive number of seconds, "
                                    f"got {float(value)!r}")
     assert not out.exists()
+
+
+@pytest.mark.timeout(120)
+def test_ctrl_c_in_a_constructor_names_it(tmp_path):
+    scenario, out = tmp_path / "s.yaml", tmp_path / "run"
+    scenario.write_text(SCENARIO.format(cls="ConstructorFault", parameters="{mode: hang}"))
+    proc = subprocess.Popen([str(COSIM), "run", str(scenario), "--out", str(out), "--no-figures",
+                             "--transport", "inproc"], cwd=REPO_ROOT,
+                            env={**os.environ, "PYTHONPATH": str(REPO_ROOT)},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    end = time.monotonic() + 60
+    while not (out / "manifest.json").exists():  # the pending manifest: the constructor is next
+        assert time.monotonic() < end and proc.poll() is None, "no pending manifest"
+        time.sleep(0.02)
+    time.sleep(0.3)
+    os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C does
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 1, stderr
+    line = "interrupted before tick 0 (in the constructor of component 'plant')"
+    assert stderr.strip().splitlines()[-1] == f"run failed: {line}"
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert (manifest["status"], manifest["error"]) == ("failed", line)
