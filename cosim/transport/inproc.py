@@ -18,6 +18,11 @@ from cosim.errors import ComponentFailure, UserError, did_you_mean
 from cosim.transport.launch import PythonComponentLaunch  # re-exported: its historical home
 from cosim.transport.parameters import ParameterProblem, check_parameters  # ParameterProblem re-exported
 
+# What a component's code may raise that fails the component: sys.exit() in a step or a
+# module must not end the host's process (nor set its exit status). KeyboardInterrupt is
+# not here: in the master's process it is the user's Ctrl-C.
+USER_CODE_ERRORS = (Exception, SystemExit)
+
 
 def import_component_class(class_path: str, component: str) -> type[Component]:
     """Import "module:Class" and check it is a Component subclass.
@@ -35,6 +40,9 @@ def import_component_class(class_path: str, component: str) -> type[Component]:
     except ImportError as exc:
         raise UserError(f"component {component!r}: cannot import module "
                         f"{module_name!r}: {exc}") from exc
+    except USER_CODE_ERRORS as exc:  # the module's own code failed while it was imported
+        raise UserError(f"component {component!r}: importing module {module_name!r} failed"
+                        f"{_where_raised(exc)}: {describe_exception(exc)}") from exc
     cls = getattr(module, class_name, None)
     if cls is None:
         classes = sorted(name for name, value in vars(module).items()
@@ -47,6 +55,17 @@ def import_component_class(class_path: str, component: str) -> type[Component]:
         raise UserError(f"component {component!r}: {class_path!r} is not a "
                         f"cosim.component.Component subclass")
     return cls
+
+
+def _where_raised(exc: BaseException) -> str:
+    """" (FILE, line N)" of the innermost frame that raised `exc`, for a module's own
+    error; "" for a SyntaxError, whose message names them already."""
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    if isinstance(exc, SyntaxError) or not frames:
+        return ""
+    return f" ({frames[-1].filename}, line {frames[-1].lineno})"
 
 
 def _problem_of(launch: PythonComponentLaunch, exc: Exception) -> ParameterProblem | None:
@@ -90,7 +109,7 @@ def construct_component(launch: PythonComponentLaunch, load_beside: bool = False
     except TypeError as exc:
         raise UserError(f"component {launch.name!r}: bad parameters for "
                         f"{launch.class_path}: {exc}") from exc
-    except Exception as exc:  # user code in __init__: report it, no traceback
+    except USER_CODE_ERRORS as exc:  # user code in __init__: report it, no traceback
         raise UserError(f"component {launch.name!r}: constructor failed: "
                         f"{describe_exception(exc)}") from exc
     for port in (*instance.inputs, *instance.outputs):
@@ -127,7 +146,7 @@ class InprocComponent:
         """Tell the component which outputs the run reads (`Component.use_outputs`)."""
         try:
             self.component.use_outputs(frozenset(names))
-        except Exception as exc:
+        except USER_CODE_ERRORS as exc:
             raise ComponentFailure(self.name, None, 0.0,
                                    f"use_outputs() failed: {describe_exception(exc)}") from exc
 
@@ -136,7 +155,7 @@ class InprocComponent:
         self._last = (None, t0)
         try:
             return self.component.initialize(t0, inputs)
-        except Exception as exc:  # any failure of user code is reported, not raised raw
+        except USER_CODE_ERRORS as exc:  # any failure of user code is reported, not raised raw
             raise ComponentFailure(self.name, None, t0, describe_exception(exc)) from exc
 
     def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
@@ -144,7 +163,7 @@ class InprocComponent:
         self._last = (tick, t)
         try:
             return self.component.step(t, inputs)
-        except Exception as exc:
+        except USER_CODE_ERRORS as exc:
             raise ComponentFailure(self.name, tick, t, describe_exception(exc)) from exc
 
     def step_values(self, tick: int, t: float, inputs: Sequence[Value]) -> Sequence[float]:
@@ -152,14 +171,14 @@ class InprocComponent:
         self._last = (tick, t)
         try:
             return self._step_values(t, inputs)
-        except Exception as exc:
+        except USER_CODE_ERRORS as exc:
             raise ComponentFailure(self.name, tick, t, describe_exception(exc)) from exc
 
     def stop(self) -> dict[str, float]:
         """Call the component's `finish()` and return its metrics."""
         try:
             metrics = self.component.finish() or {}
-        except Exception as exc:
+        except USER_CODE_ERRORS as exc:
             raise ComponentFailure(self.name, *self._last,
                                    f"finish() failed: {describe_exception(exc)}") from exc
         return {str(k): float(v) for k, v in metrics.items()}

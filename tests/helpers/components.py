@@ -356,3 +356,22 @@ class ConstructorFault(Component):
 
     def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         return {"y": inputs["u"]}
+
+
+class RaisesBaseException(Component):
+    """Echoes u until t reaches `at`, then calls sys.exit(`code`) (`what` "exit") or
+    raises KeyboardInterrupt ("interrupt") from its step."""
+
+    inputs = (Port("u"),)
+    outputs = (Port("y"),)
+
+    def __init__(self, what: str = "exit", code: int = 0, at: float = 0.1) -> None:
+        self.what, self.code, self.at = what, code, at
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        if t >= self.at - 1e-9:
+            if self.what == "exit":
+                import sys
+                sys.exit(self.code)
+            raise KeyboardInterrupt
+        return {"y": inputs["u"]}

@@ -41,8 +41,8 @@ import zenoh
 from cosim import startup_gc
 from cosim.component import Component, values_step
 from cosim.errors import UserError
-from cosim.transport.inproc import (ParameterProblem, PythonComponentLaunch, construct_component,
-                          describe_exception)
+from cosim.transport.inproc import (USER_CODE_ERRORS, ParameterProblem, PythonComponentLaunch,
+                                    construct_component, describe_exception)
 from cosim.engine import one_cpu
 from cosim.engine.startup import process_age_s
 from cosim.transport.launch import steps_from_json
@@ -54,6 +54,9 @@ from cosim.transport.zenoh.codec import (CodecError, Kind, Layout, HEADER, decod
 
 MASTER_POLL_S = 0.1
 HANDSHAKE_TIMEOUT_S = 30.0
+# This process ignores SIGINT (the master handles Ctrl-C): a KeyboardInterrupt here came
+# from the component's own code, and fails the component like any of its errors.
+COMPONENT_ERRORS = (*USER_CODE_ERRORS, KeyboardInterrupt)
 ORPHAN_EXIT = 3
 _STEP, _OUTPUTS = Kind.STEP, Kind.OUTPUTS
 
@@ -110,7 +113,7 @@ class _Server:
             self.build_detail = {"parameter": exc.parameter, "problem": exc.problem}
         except UserError as exc:
             self.build_error = str(exc)
-        except Exception as exc:  # user code in __init__: report, do not crash
+        except COMPONENT_ERRORS as exc:  # user code in __init__: report, do not crash
             self.build_error = (f"component {launch.name!r}: constructor failed: "
                                 f"{describe_exception(exc)}")
         if self.component is not None:
@@ -134,7 +137,7 @@ class _Server:
         if kind == _STEP and self.component is not None:
             try:
                 outputs = self._step_component(t, self._decode(data))
-            except Exception as exc:  # user code: the master reports it with tick and time
+            except COMPONENT_ERRORS as exc:  # user code: the master reports it with tick and time
                 cause = describe_exception(exc)
                 return encode_json(Kind.ERROR, seq, tick, t, {"cause": cause}), False
             if self._lane_count is not None and (problem := lane_result_problem(outputs, self._lane_count)):
@@ -177,7 +180,7 @@ class _Server:
                 outputs = self.component.initialize(t, inputs)
             else:
                 outputs = self.component.step(t, inputs)
-        except Exception as exc:  # user code: the master reports it with tick and time
+        except COMPONENT_ERRORS as exc:  # user code: the master reports it with tick and time
             return encode_json(Kind.ERROR, seq, tick, t, {"cause": describe_exception(exc)})
         try:
             return self.out_layout.encode(Kind.OUTPUTS, seq, tick, t, outputs, finite=True)
@@ -188,7 +191,7 @@ class _Server:
         assert self.component is not None
         try:
             self.component.use_outputs(frozenset(decode_json(data)["outputs"]))
-        except Exception as exc:
+        except COMPONENT_ERRORS as exc:
             cause = f"use_outputs() failed: {describe_exception(exc)}"
             return encode_json(Kind.ERROR, seq, -1, 0.0, {"cause": cause})
         return encode_json(Kind.USED, seq, -1, 0.0, {})
@@ -198,7 +201,7 @@ class _Server:
         try:
             metrics = self.component.finish() or {}
             document: dict[str, Any] = {str(k): float(v) for k, v in metrics.items()}
-        except Exception as exc:
+        except COMPONENT_ERRORS as exc:
             cause = f"finish() failed: {describe_exception(exc)}"
             return encode_json(Kind.ERROR, seq, tick, t, {"cause": cause})
         return encode_json(Kind.METRICS, seq, tick, t, document)
@@ -250,7 +253,7 @@ def _launch(args: argparse.Namespace) -> PythonComponentLaunch | None:
     if args.preload:
         try:
             importlib.import_module(args.preload)
-        except Exception:  # noqa: BLE001 - a guess: the real import names any problem
+        except COMPONENT_ERRORS:  # a guess: the real import names any problem
             pass
     line = sys.stdin.readline()
     if not line.strip():
@@ -277,13 +280,15 @@ def serve(args: argparse.Namespace) -> int:
     with zenoh.open(_session_config(args)) as session:
         _exit_when_master_gone(session, args.run_id)
         greeted = threading.Event()
-        _exit_without_handshake(greeted, args.handshake_timeout_s)
         token = session.liveliness().declare_token(config.alive_key(args.run_id, args.name))
         ages["session"] = process_age_s()
         # Build first, then subscribe: the master's HELLO retries sent while a slow
         # constructor runs are not delivered, so they cannot fill the request queue.
         server = _Server(launch, ages, greeted)
         ages["built"] = process_age_s()
+        # from here a master's HELLO can arrive: the constructor's time is the master's
+        # start-up timeout to judge (a master gone meanwhile is noticed by its token)
+        _exit_without_handshake(greeted, args.handshake_timeout_s)
         startup_gc.resume(freeze=True)  # built: what it made lives as long as the process
         requests = session.declare_subscriber(config.request_key(args.run_id, args.name))
         publisher = session.declare_publisher(config.reply_key(args.run_id, args.name),
