@@ -174,7 +174,8 @@ def validate(scenario: ScenarioSource, *, set: Overrides = None) -> dict[str, An
 def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
         transport: str = "inproc", out: str | Path | None = None,
         progress: bool = False, place: Sequence[str] = (),
-        deploy: str | Path | None = None, lockstep_cpu: str | int = "auto") -> Run:
+        deploy: str | Path | None = None, lockstep_cpu: str | int = "auto",
+        force: bool = False) -> Run:
     """Run a scenario to its run folder, compute its metrics, and return its results.
 
     Args:
@@ -182,6 +183,7 @@ def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
         set: overrides, as for `load_scenario`.
         transport: "inproc" (default here: one process) or "zenoh" (a process per component).
         out: the run folder; default runs/<name>-<UTC time> under the working directory.
+            An existing non-empty folder is refused unless `force`.
         progress: draw a progress bar on stderr.
         place: "COMPONENT=WORKER" items, as `cosim run --place` (they override the
             scenario's `host:`; WORKER `inproc` hosts a Python component in this process);
@@ -189,6 +191,8 @@ def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
         deploy: a deployment settings YAML (workers' endpoints, TLS), as `cosim run --deploy`.
         lockstep_cpu: "auto", "off" or a CPU number, as `cosim run --lockstep-cpu`: when the
             run starts processes, this thread and they run on that one CPU until it ends.
+        force: replace an earlier run's folder at `out` (its files are removed first), as
+            `cosim run --force`; only a run folder (one with a manifest.json) is replaced.
     Returns:
         The Run. A component failing mid-run does not raise: `status` is then "failed",
         `error` says why, and everything up to the last complete tick is in the folder.
@@ -198,10 +202,12 @@ def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
     """
     from cosim.execution.finish import analyse_run_folder
     from cosim.engine.one_cpu import check_setting
-    from cosim.execution.run import check_run_options, run_scenario
+    from cosim.execution.run import check_out_folder, check_run_options, run_scenario
     from cosim.results.folders import stamped_folder
 
     check_run_options(transport, None)
+    if out is not None:
+        check_out_folder(out, force, "out")
     check_setting(lockstep_cpu, "lockstep_cpu")
     if isinstance(place, str):      # one item given bare, not a list of one
         place = [place]
@@ -212,7 +218,7 @@ def run(scenario: ScenarioSource, *, set: Overrides = None,  # noqa: A002
     loaded = load_scenario(scenario, set=set)
     folder = Path(out) if out is not None else stamped_folder("runs", loaded.name)
     result = run_scenario(loaded, folder, transport=transport, progress=progress, place=list(place),
-                          deploy=settings, lockstep_cpu=lockstep_cpu)
+                          deploy=settings, lockstep_cpu=lockstep_cpu, replace=force)
     if result.ticks > 0:
         analyse_run_folder(result, figures=False)
     return Run(result.out_dir)

@@ -79,7 +79,8 @@ def run(
                                   help="refuse a run of more ticks than this"),
     allow_large: bool = typer.Option(False, "--allow-large",
                                      help="no limit on ticks or CSV size (10 GB by default)"),
-    force: bool = typer.Option(False, "--force", help="let --out replace an existing run folder"),
+    force: bool = typer.Option(False, "--force", help="let --out replace an earlier run's folder "
+                                                      "(its files are removed first)"),
     fmu_log: bool = typer.Option(False, "--fmu-log", help="every FMU's log messages to run.log"),
     supervise: bool = typer.Option(True, "--supervise/--no-supervise",
                                    help="a parent process that completes the run folder if "
@@ -131,7 +132,7 @@ def run(
                                 (foxglove, foxglove_host), prestart and transport == "zenoh"
                                 and not (place or listen or connect or deploy),
                                 transport=transport, realtime=realtime, place=place,
-                                deadline_s=deadline, startup_timeout_s=startup_timeout,
+                                deadline_s=deadline, startup_timeout_s=startup_timeout, replace=force,
                                 limits=limits, fmu_log=fmu_log,
                                 strict=strict, lockstep_cpu=chain_setting,
                                 at_tick0=functools.partial(_tick0_done, drawer))
@@ -191,28 +192,11 @@ def _list_shipped() -> typer.Exit:
 
 
 def check_out_option(out: Optional[str], force: bool) -> Optional[Path]:
-    """The `--out` folder: not empty text, and not a non-empty folder unless --force.
+    """The `--out` folder (None: a fresh folder under runs/); see
+    `cosim.execution.run.check_out_folder`, which raises the UserError."""
+    from cosim.execution.run import check_out_folder
 
-    Args:
-        out: the `--out` value (None: a fresh folder under runs/).
-        force: `--force`, which lets the run write into an existing folder
-            (files of the same name are replaced, others stay).
-    Raises:
-        UserError for '' or an existing non-empty folder without --force.
-    """
-    if out is None:
-        return None
-    if not out.strip():
-        raise UserError("--out needs a folder name, got an empty one")
-    folder = Path(out)
-    try:
-        occupied = folder.is_dir() and any(folder.iterdir())
-    except OSError as exc:
-        raise UserError(f"--out {out}: cannot read the folder: {exc.strerror or exc}") from None
-    if occupied and not force:
-        raise UserError(f"--out {out}: the folder exists and is not empty (another run?); "
-                        "choose another folder, or pass --force to write into it")
-    return folder
+    return None if out is None else check_out_folder(out, force)
 
 
 def _interrupted_exit(stop_error: str | None = None, where: str = "") -> typer.Exit:

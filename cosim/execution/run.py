@@ -93,7 +93,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
                  before_tick0: Callable[[], None] | None = None,
                  at_tick0: Callable[[], None] | None = None,
                  lockstep_cpu: str | int = "auto", runs_in_process: int | None = None,
-                 startup_timeout_s: float = STARTUP_TIMEOUT_S) -> RunResult:
+                 startup_timeout_s: float = STARTUP_TIMEOUT_S, replace: bool = False) -> RunResult:
     """Run a scenario and write its run folder.
 
     Start-up is ordered so that tick 0 comes early: the component processes
@@ -117,7 +117,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         prestart: a `cosim.execution.prestart.Prestart` (component processes started
             while the scenario loaded): used for a local zenoh run, ended
             otherwise; always closed before returning.
-        on_folder: called with the run folder once it is created (after the
+        on_folder: called with the run folder (as given) once it is created (after the
             checks that need no component running); from then on a run that
             fails before tick 0 leaves a manifest.json with status "failed".
         observers: more master observers (e.g. cosim.foxglove.live.FoxgloveLive),
@@ -141,6 +141,9 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
             told theirs; an estimate when the runs differ in length (a sweep that varies
             the duration or a period); None (a Python session, a cluster that outlives
             the sweep): unknown, not told. At least 1.
+        replace: an earlier run's folder at `out_dir` is emptied before the run writes
+            (`check_out_folder` with force); False: the run's files replace those of the
+            same name.
         startup_timeout_s: the longest a component may take to start: a component
             process's start and handshake, or the constructor of a component in this
             process (a supervised run's supervisor ends the master past it).
@@ -167,14 +170,14 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         launches += _placed_fmu_launches(scenario, placement)
         remote_launches = [launch for launch in launches if launch.name not in in_master]
         chain = stack.enter_context(one_cpu.PinnedChain(lockstep_cpu))  # pinned before tick 0
-        out = _make_run_folder(Path(out_dir))
+        out = _make_run_folder(Path(out_dir), replace)
         run_id = prestart.run_id if prestart is not None else uuid.uuid4().hex[:12]
         page = supervisor.current()
         try:
             if page is not None:
                 page.announce(out)
             if on_folder is not None:
-                on_folder(out)
+                on_folder(Path(out_dir))  # as the user gave it; the run uses it absolute
             remote = None
             if transport == "zenoh" and remote_launches:  # spawned before the FMUs load: start-ups overlap
                 remote = _spawn_remote(remote_launches, run_id, (deadline_s, startup_timeout_s),
@@ -220,14 +223,60 @@ class _Options:
     identity: tuple[str, str] = ("", "inproc")  # (run id, transport), for a manifest before hosting
 
 
-def _make_run_folder(out: Path) -> Path:
-    """Create the run folder; one that cannot be made (a file there, no permission) is a UserError."""
+def check_out_folder(out: str | Path, force: bool = False, option: str = "--out") -> Path:
+    """The run folder a run may write: not an empty name, and not an existing non-empty
+    folder unless `force`, and then only an earlier run folder (one with a manifest.json),
+    which the run replaces whole (`run_scenario(replace=True)`).
+
+    Args:
+        out: the folder asked for.
+        force: replace an earlier run folder there.
+        option: how the user named it, for the message ("--out", "out").
+    Raises:
+        UserError for an empty name, an occupied folder without `force`, or with it a
+        folder that is not a run folder (`--out / --force` must not empty /).
+    """
+    if not str(out).strip():
+        raise UserError(f"{option} needs a folder name, got an empty one")
+    folder = Path(out)
     try:
+        occupied = folder.is_dir() and any(folder.iterdir())
+    except OSError as exc:
+        raise UserError(f"{option} {out}: cannot read the folder: {exc.strerror or exc}") from None
+    if occupied and not force:
+        raise UserError(f"{option} {out}: the folder exists and is not empty (another run?); "
+                        f"choose another folder, or replace that run with --force")
+    if occupied and not (folder / "manifest.json").is_file():
+        raise UserError(f"{option} {out}: the folder is not empty and is not a run folder (no "
+                        f"manifest.json); --force replaces only an earlier run's folder")
+    return folder
+
+
+def _make_run_folder(out: Path, replace: bool) -> Path:
+    """Create the run folder, absolute (an FMU may change the working directory); with
+    `replace`, an earlier run's folder there is emptied first (see check_out_folder).
+    One that cannot be made (a file there, no permission) is a UserError."""
+    out = out.absolute()
+    try:
+        if replace and out.is_dir() and any(out.iterdir()):
+            check_out_folder(out, force=True)
+            _empty_folder(out)
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"cannot create the run folder {str(out)!r}: "
                         f"{exc.strerror or exc}") from None
     return out
+
+
+def _empty_folder(folder: Path) -> None:
+    """Remove what `folder` holds (its symbolic links, not what they point to)."""
+    import shutil
+
+    for entry in folder.iterdir():
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry)
+        else:
+            entry.unlink()
 
 
 def _count_of_runs(runs: Any) -> int | None:

@@ -375,3 +375,15 @@ class RaisesBaseException(Component):
                 sys.exit(self.code)
             raise KeyboardInterrupt
         return {"y": inputs["u"]}
+
+
+class ChangesDirectory(Component):
+    """Changes the process's working directory in its steps (as some foreign FMUs do)."""
+
+    inputs = (Port("u"),)
+    outputs = (Port("y"),)
+
+    def step(self, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
+        import os
+        os.chdir("/")
+        return {"y": inputs["u"]}

@@ -165,8 +165,8 @@ def test_out_refuses_an_occupied_folder_and_the_empty_name(tmp_path, capsys):
     capsys.readouterr()
     assert _run(scenario, out) == 2
     assert _error_line(capsys) == (f"error: --out {out}: the folder exists and is not empty "
-                                   "(another run?); choose another folder, or pass --force "
-                                   "to write into it")
+                                   "(another run?); choose another folder, or replace that "
+                                   "run with --force")
     assert (out / "signals.csv").read_bytes() == before
     assert _run(scenario, out, "--force") == 0
     assert main(["run", str(scenario), "--transport", "inproc", "--out", ""]) == 2
