@@ -141,6 +141,7 @@ def component_names(scenario: Any) -> list[str]:
 
 
 def plan_fmu(scenario: Any, name: str, spec: Any) -> FmuPlan:
+    from cosim.errors import FmuInterfaceError
     from cosim.fmu.interface import check_parameters, describe_fmu
 
     where = scenario.resolve_fmu_path(spec)
@@ -156,12 +157,26 @@ def plan_fmu(scenario: Any, name: str, spec: Any) -> FmuPlan:
     else:
         path = Path(where)
     origin = scenario.where(("components", name, "variables"))
-    interface = describe_fmu(path, dict(spec.variables), origin=origin, kind=spec.interface)
+    try:
+        interface = describe_fmu(path, dict(spec.variables), origin=origin, kind=spec.interface)
+    except FmuInterfaceError as exc:
+        raise _located(exc, scenario.where(("components", name, "fmu")), path) from None
     path = _checked_archive(scenario, name, spec, path, interface)
     parameters = scenario.plant_parameters(name, _start_values(interface))
     check_parameters(interface, parameters, name, scenario=scenario)
     return FmuPlan(name, path, interface, parameters, scenario.period_ticks(name),
                    _solver_settings(scenario, name, spec, interface))
+
+
+def _located(exc: Exception, where: str, path: Path) -> Exception:
+    """An FMU's own error (archive, modelDescription.xml: it starts with the FMU's path)
+    on one line after the scenario field that names the FMU; other errors as they are."""
+    text = str(exc)
+    if not text.startswith(str(path)):
+        return exc
+    first, *details = text.splitlines()
+    details = [line.strip().removeprefix("- ") for line in details if line.strip()]
+    return type(exc)(f"{where}: {first}" + (" " + "; ".join(details) if details else ""))
 
 
 def _checked_archive(scenario: Any, name: str, spec: Any, path: Path, interface: Any) -> Path:
