@@ -95,8 +95,8 @@ def _final_status(manifest_path: Path) -> str | None:
 
 def locate_parameter_problem(scenario: Any, exc: BaseException) -> UserError | None:
     """A component's rejected parameter (cosim.transport.inproc.ParameterProblem) as a
-    UserError starting with the parameter's YAML file, line and path; None for
-    any other exception.
+    UserError starting with the parameter's YAML file, line and path, an algebraic loop
+    at its connections (`Scenario.locate`); None for any other exception.
 
     Args:
         scenario: the scenario being run.
@@ -104,7 +104,7 @@ def locate_parameter_problem(scenario: Any, exc: BaseException) -> UserError | N
     """
     component, parameter = getattr(exc, "component", None), getattr(exc, "parameter", None)
     if not isinstance(exc, UserError) or parameter is None:
-        return None
+        return scenario.locate(exc)  # an algebraic loop: at its connections
     spec = scenario.components.get(component)
     if spec is None or parameter not in (getattr(spec, "parameters", None) or {}):
         return None

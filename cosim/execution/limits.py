@@ -54,7 +54,7 @@ def check_ticks(scenario: Any, limits: RunLimits) -> int:
     """
     ticks = scenario.total_ticks
     if not limits.allow_large and ticks > limits.max_ticks:
-        raise UserError(f"{scenario.where(('duration',))}: the run would have {ticks:.3g} "
+        raise UserError(f"{scenario.where(('duration',), ('tick',))}: the run would have {ticks:.3g} "
                         f"ticks (duration {scenario.duration:g} s / tick {scenario.tick:g} s), "
                         f"more than the limit of {limits.max_ticks:.3g}: {ADVICE}")
     return ticks

@@ -118,6 +118,8 @@ def _message(errors: list[Any], class_path: str, model: type[BaseModel]) -> str:
         if len(first["loc"]) > 1:
             return f"unknown field {key!r}"
         known = list(model.model_fields)
+        if not known:
+            return f"unknown parameter {key!r}: {class_path} takes no parameters"
         return (f"unknown parameter {key!r}{did_you_mean(str(key), known)}; "
                 f"known: {', '.join(known)}")
     if first["type"] == "missing":

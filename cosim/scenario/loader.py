@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -156,7 +157,8 @@ def _validate(data: dict, file: Path | None, lines: LineMap,
         problems += [p for p in (_problem_of(err, lines) for err in exc.errors())
                      if p.path not in unreadable]
     seen = {p.path for p in problems}
-    for loc, message in semantic_problems(data, file.parent if file is not None else Path.cwd()):
+    base_dir = file.parent if file is not None else Path.cwd()
+    for loc, message in semantic_problems(data, base_dir, lines.also_set):
         problem = _located(loc, message, lines)
         if problem.path not in seen:
             problems.append(problem)
@@ -249,7 +251,8 @@ def apply_overrides(data: Any, overrides: Sequence[str], lines: LineMap) -> list
     """Apply "a.b.c=value" overrides to a loaded document, in order.
 
     Intermediate mappings are created when missing; list items are addressed
-    by their index ("connections.0.delay=1"). Values are parsed as YAML.
+    by their index, "connections.0.delay=1" or, as error messages print the path,
+    "connections[0].delay=1". Values are parsed as YAML.
 
     Args:
         data: the document (modified in place).
@@ -266,14 +269,39 @@ def apply_overrides(data: Any, overrides: Sequence[str], lines: LineMap) -> list
     return problems
 
 
+#: one dotted part of an override's path: a key, then list indices ("connections[1]")
+_KEY_PART = re.compile(r"^([^\[\]]*)((?:\[\s*\d+\s*\])*)$")
+
+
+def _path_keys(dotted: str) -> list[tuple[str, bool]] | None:
+    """The keys of an override's path, each with whether it was written as an index in
+    brackets: "connections[1].delay" and "connections.1.delay" are both connections, 1,
+    delay (the first as an error message prints it). None when a part is empty.
+    """
+    keys: list[tuple[str, bool]] = []
+    for part in dotted.split("."):
+        match = _KEY_PART.match(part.strip())
+        if match is None:  # brackets that are no index ("a[b]"): a key as written
+            keys.append((part.strip(), False))
+            continue
+        name, indices = match.group(1).strip(), re.findall(r"\d+", match.group(2))
+        if not name and not (indices and keys):
+            return None
+        keys += [(name, False)] if name else []
+        keys += [(index, True) for index in indices]
+    return keys
+
+
 def _apply_one(data: Any, text: str, lines: LineMap) -> str | None:
     """Apply one override; return what is wrong with it, or None."""
     dotted, sep, raw = text.partition("=")
-    keys = [k.strip() for k in dotted.split(".")]
-    if not sep or not all(keys):
+    keys = _path_keys(dotted)
+    if not sep or not keys:
         return "an override reads PATH=VALUE, e.g. components.controller.parameters.ke=2.0"
     try:
         value = parse_scalar(raw)
+    except YamlLimitError as exc:  # valid YAML that cannot become a value (a tag, a date)
+        return f"value {raw!r} cannot be read: {exc.problem}"
     except yaml.YAMLError as exc:
         reason = getattr(exc, "problem", None) or type(exc).__name__
         mark = getattr(exc, "problem_mark", None)
@@ -282,12 +310,15 @@ def _apply_one(data: Any, text: str, lines: LineMap) -> str | None:
     node, loc = data, []
     created: tuple[str | int, ...] | None = None
     note = ""  # a misspelt key that the override created, with the close existing one
-    for depth, key in enumerate(keys):
+    for depth, (key, bracketed) in enumerate(keys):
         last = depth == len(keys) - 1
         if isinstance(node, list):
             if not key.isdigit() or int(key) >= len(node):
                 return f"{format_path(loc)} is a list of {len(node)} items; {key!r} is no index"
             index: str | int = int(key)
+        elif isinstance(node, dict) and bracketed:
+            return (f"{format_path(loc) or 'the document'} is a mapping, not a list, "
+                    f"so [{key}] is no index")
         elif isinstance(node, dict):
             index = key
             if not last and key not in node:

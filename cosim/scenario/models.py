@@ -19,8 +19,9 @@ from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Di
                       ValidationInfo, model_serializer,
                       model_validator)
 
-from cosim.errors import Problem, ScenarioError
+from cosim.errors import Problem, ScenarioError, UserError
 from cosim.scenario.checks import BUILTIN_FMUS, semantic_problems, whole_ticks
+from cosim.scenario.loops import locate_loop
 from cosim.scenario.roles import MetricRoles
 from cosim.scenario.sources import SOURCE_CLASSES, SourceSpec
 from cosim.scenario.yaml_lines import LineMap, format_path
@@ -359,12 +360,31 @@ class Scenario(BaseModel):
             message += f" (set by --set {override})"
         return Problem(format_path(path), self.line_of(path), message)
 
-    def where(self, path: tuple[str | int, ...]) -> str:
+    def where(self, path: tuple[str | int, ...], *also: tuple[str | int, ...]) -> str:
         """"FILE:LINE: PATH" for messages of other layers (FMU checks, wiring), with
-        " (set by --set ...)" when an override put the value there."""
+        " (set by --set ...)" when an override put the value there.
+
+        Args:
+            path: the field the message is about.
+            also: other fields its value derives from, each noted when an override
+                set it: where(("duration",), ("tick",)) for a tick count gives
+                "FILE:10: duration (tick set by --set tick=1e-300)".
+        """
         where = Problem(format_path(path), self.line_of(path), "").format(self._file)
         override = self._lines.override_of(path)
-        return where.rstrip(": ") + (f" (set by --set {override})" if override else "")
+        notes = "".join(self._lines.also_set(other) for other in also if other != path)
+        return where.rstrip(": ") + (f" (set by --set {override})" if override else "") + notes
+
+    def overrides_within(self, path: tuple[str | int, ...]) -> list[str]:
+        """The --set texts that set `path`, an ancestor or a field under it."""
+        return self._lines.overrides_within(path)
+
+    def locate(self, error: BaseException) -> UserError | None:
+        """An error another layer raised about the scenario as a whole, located in the
+        file: an algebraic loop of the step order (cosim.engine.schedule) at the loop's
+        connection, with its line and "(set by --set ...)" (cosim.scenario.loops);
+        None for any other error (raise it as it is)."""
+        return locate_loop(self, error)
 
     # ---- what the master asks ---------------------------------------------------------
     @property
@@ -373,7 +393,8 @@ class Scenario(BaseModel):
         ticks = whole_ticks(self.duration, self.tick)
         if ticks is None:
             raise ScenarioError(self._file, [self.problem(
-                ("duration",), f"duration {self.duration:g} s is not a whole number of ticks")])
+                ("duration",), f"duration {self.duration:g} s is not a whole number of ticks "
+                               f"of {self.tick:g} s{self._lines.also_set(('tick',))}")])
         return ticks
 
     def spec(self, name: str) -> FmuSpec | PythonSpec:
@@ -406,7 +427,8 @@ class Scenario(BaseModel):
         ticks = whole_ticks(period, self.tick)
         if ticks is None or ticks < 1:
             raise ScenarioError(self._file, [self.problem((section, name, "period"), (
-                f"period {period:g} s{note} is not a whole multiple of tick {self.tick:g} s"))])
+                f"period {period:g} s{note} is not a whole multiple of tick {self.tick:g} s"
+                f"{self._lines.also_set(('tick',))}"))])
         return ticks
 
     def fmu_components(self) -> dict[str, FmuSpec]:

@@ -4,11 +4,13 @@ They are the YAML files of the platform's `scenarios/` folder (the checkout's,
 or the copy an installed wheel carries: `cosim.resources`). A scenario
 argument is a file when such a file exists, else the name of a shipped
 scenario ("lane_change", or "lane_change.yaml"); anything else is a
-`ScenarioError` that lists the shipped names.
+`ScenarioError` that lists the shipped names, or, for a path that exists but
+is no regular file (a directory, a FIFO, /dev/null), says what it is.
 """
 
 from __future__ import annotations
 
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -84,6 +86,25 @@ def find_scenario(scenario: str | Path) -> Path:
     return path
 
 
+#: what a path that exists but is no regular file is, by its stat.S_IFMT type
+_FILE_KINDS = {stat.S_IFDIR: "a directory", stat.S_IFIFO: "a FIFO (named pipe)",
+               stat.S_IFCHR: "a character device", stat.S_IFBLK: "a block device",
+               stat.S_IFSOCK: "a socket"}
+
+
+def not_a_file(path: Path) -> str | None:
+    """What an existing path that is not a regular file is ("is a directory",
+    "is a FIFO (named pipe)"); None for a regular file or no such path.
+    The path is never opened (opening a FIFO would wait for a writer)."""
+    try:
+        mode = path.stat().st_mode
+    except OSError:  # no such file (or no access): the caller's "not found"
+        return None
+    if stat.S_ISREG(mode):
+        return None
+    return "is " + _FILE_KINDS.get(stat.S_IFMT(mode), "no regular file")
+
+
 def resolve_scenario(scenario: str | Path) -> Path:
     """The scenario file an argument names: an existing file, else a shipped scenario.
 
@@ -96,6 +117,9 @@ def resolve_scenario(scenario: str | Path) -> Path:
     if path.is_file():
         return path
     text = str(scenario)
+    kind = not_a_file(path)
+    if kind is not None:
+        raise ScenarioError(text, [Problem("", None, f"{kind}, not a regular file")])
     shipped = shipped_scenarios()
     stem = path.stem if path.suffix in SUFFIXES else path.name
     names = ", ".join(shipped) or "none"

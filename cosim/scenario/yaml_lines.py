@@ -13,7 +13,8 @@ Hostile or broken documents get one located problem, never a crash: nesting
 deeper than `MAX_DEPTH`, aliases that expand to more than `MAX_ALIAS_VALUES`
 values (an "alias bomb"), an anchor used inside its own value, characters YAML
 does not allow (NUL, other control characters) and scalars Python cannot
-construct (an out-of-range date, an integer of thousands of digits).
+construct (an out-of-range date, an integer of thousands of digits, a tag
+such as `!!python/object:...`), each on one line.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ PathKey = tuple[str | int, ...]
 MAX_FILE_BYTES = 10 * 1024 * 1024  # a scenario file is a few kB; tables stay far below this
 MAX_DEPTH = 64  # nested mappings and lists; a scenario needs about 6
 MAX_ALIAS_VALUES = 100_000  # values built again through aliases, over the whole document
+YAML_TAG_PREFIX = "tag:yaml.org,2002:"  # what "!!" abbreviates
 
 
 class YamlLimitError(yaml.YAMLError):
@@ -129,6 +131,20 @@ class LineMap:
                 return self.detached[key[:depth]]
         return None
 
+    def overrides_within(self, path: Sequence[str | int]) -> list[str]:
+        """The override texts that set `path`, an ancestor of it or a field under it
+        (a connection whose `delay` came from --set), in the order they were given."""
+        key = tuple(path)
+        return [text for where, text in self.detached.items()
+                if where[:len(key)] == key or key[:len(where)] == where]
+
+    def also_set(self, path: Sequence[str | int]) -> str:
+        """" (tick set by --set tick=20)" when an override set `path`, else "": the note
+        for a problem located at another field that `path`'s value entered into (a
+        duration that is no whole number of ticks, where the tick came from --set)."""
+        override = self.override_of(path)
+        return f" ({format_path(path)} set by --set {override})" if override is not None else ""
+
 
 def read_yaml_file(path: str | Path) -> str:
     """The text of a YAML file, refusing what cannot be a scenario.
@@ -211,7 +227,7 @@ def load_yaml(text: str) -> tuple[Any, LineMap, list[Problem]]:
     except YamlLimitError as exc:
         return None, LineMap(), [Problem("", exc.line, f"YAML refused: {exc.problem}")]
     except yaml.YAMLError as exc:
-        return None, LineMap(), [Problem("", None, f"YAML error: {exc}")]
+        return None, LineMap(), [Problem("", None, f"YAML error: {one_line(exc)}")]
     return data, lines, problems
 
 
@@ -236,6 +252,27 @@ def _reader_problem(text: str, exc: yaml.reader.ReaderError) -> YamlLimitError:
     name = "a NUL byte" if code == 0 else f"the control character U+{code:04X}"
     return YamlLimitError(f"the file holds {name}, which YAML does not allow (not a text file?)",
                           text.count("\n", 0, exc.position) + 1)
+
+
+def one_line(exc: BaseException) -> str:
+    """An exception's text on one line: a PyYAML marked error without its
+    'in "<unicode string>", line 1, column 1:' block and caret."""
+    if isinstance(exc, yaml.MarkedYAMLError):
+        text = " ".join(str(part) for part in (exc.context, exc.problem) if part) or type(exc).__name__
+    else:
+        text = str(exc)
+    return " ".join(text.split())
+
+
+def _constructor_problem(node: yaml.ScalarNode, exc: yaml.constructor.ConstructorError) -> str:
+    """What is wrong with a scalar PyYAML's safe constructor refused: an unknown tag
+    (shown as written, "!!python/object:os.system"), or PyYAML's reason on one line."""
+    if "could not determine a constructor" in str(exc.problem):
+        tag = str(node.tag)
+        shown = "!!" + tag.removeprefix(YAML_TAG_PREFIX) if tag.startswith(YAML_TAG_PREFIX) else tag
+        return (f"the tag {shown!r} is not supported (a scenario holds plain values: "
+                "numbers, strings, true/false, lists, mappings)")
+    return f"cannot read value {node.value[:40]!r}: {one_line(exc)}"
 
 
 class _Builder:
@@ -280,9 +317,13 @@ class _Builder:
     def _scalar(self, node: yaml.ScalarNode, path: PathKey, problems: list[Problem]) -> Any:
         try:
             return self.constructor.construct_object(node, deep=True)
+        except yaml.constructor.ConstructorError as exc:  # !!python/object:os.system, !foo
+            problems.append(Problem(format_path(path), node.start_mark.line + 1,
+                                    _constructor_problem(node, exc)))
+            return None
         except (yaml.YAMLError, ValueError, OverflowError) as exc:  # 2024-13-45, 10**5000
             problems.append(Problem(format_path(path), node.start_mark.line + 1,
-                                    f"cannot read value {node.value[:40]!r}: {exc}"))
+                                    f"cannot read value {node.value[:40]!r}: {one_line(exc)}"))
             return None
 
     def _mapping(self, node: yaml.MappingNode, path: PathKey, lines: LineMap,

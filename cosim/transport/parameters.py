@@ -60,6 +60,9 @@ def check_parameters(cls: type, launch: PythonComponentLaunch) -> None:
                  if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD,
                                inspect.Parameter.KEYWORD_ONLY)]
         for name in launch.parameters:
+            if name not in known and not known:
+                raise ParameterProblem(launch.name, name, f"unknown parameter {name!r}: "
+                                       f"{launch.class_path} takes no parameters")
             if name not in known:
                 raise ParameterProblem(launch.name, name, f"unknown parameter {name!r}"
                                        f"{did_you_mean(name, known)}; known: {', '.join(known)}")

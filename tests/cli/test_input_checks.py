@@ -76,7 +76,8 @@ def test_run_size_is_bounded_unless_raised(tmp_path, capsys):
     assert main(["run", str(path), "--transport", "inproc", "--out", str(out),
                  "--set", "tick=1e-9"]) == 2
     assert _err(capsys) == (
-        f"error: {path}:2: duration: the run would have 5e+08 ticks (duration 0.5 s / tick "
+        f"error: {path}:2: duration (tick set by --set tick=1e-9): the run would have 5e+08 "
+        "ticks (duration 0.5 s / tick "
         "1e-09 s), more than the limit of 1e+08: raise the limit with --max-ticks N, or pass "
         "--allow-large")
     assert not out.exists()  # refused before the run folder

@@ -41,8 +41,8 @@ def test_undecodable_file(tmp_path: Path) -> None:
 
 def test_numeric_component_name(tmp_path: Path) -> None:
     assert problems(tmp_path, GOOD_HEAD + "  1: {python: x:Y}\n  true: {python: x:Y}\n") == [
-        ":5: components.1: name '1' is not an identifier (letters, digits, _; not starting "
-        "with a digit)"]
+        ":5: components.1: name '1' is not an identifier (ASCII letters, digits, _; "
+        "not starting with a digit)"]
 
 
 def test_yaml_syntax_error_names_the_line(tmp_path: Path) -> None:
@@ -114,10 +114,10 @@ def test_names_are_identifiers_and_unique(tmp_path: Path) -> None:
     text = GOOD_HEAD + ("  2fast: {python: x:Y}\n  my-ctrl: {python: x:Y}\n  wind: {python: x:Y}\n"
                         "sources:\n  wind: {kind: constant, value: 1}\n")
     assert problems(tmp_path, text) == [
-        ":5: components.2fast: name '2fast' is not an identifier (letters, digits, _; not "
-        "starting with a digit)",
-        ":6: components.my-ctrl: name 'my-ctrl' is not an identifier (letters, digits, _; not "
-        "starting with a digit)",
+        ":5: components.2fast: name '2fast' is not an identifier (ASCII letters, digits, _; "
+        "not starting with a digit)",
+        ":6: components.my-ctrl: name 'my-ctrl' is not an identifier (ASCII letters, digits, "
+        "_; not starting with a digit)",
         ":9: sources.wind: name 'wind' is already used in components"]
 
 
