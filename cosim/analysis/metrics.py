@@ -3,8 +3,9 @@
 `compute_metrics(run_dir)` reads a run folder and returns the metrics the
 paper's experiments are judged by; `write_metrics(run_dir)` merges them into
 the folder's `metrics.json` (keeping what components wrote there). A metric
-whose signals the run did not record is left out, with a note saying why
-(`analyse_run` returns the notes; `write_metrics` saves them in
+whose signals the run did not record is left out, with a note saying why, and so is
+one that is not a finite number (a rate or a square of values near the largest float
+overflows) (`analyse_run` returns the notes; `write_metrics` saves them in
 `metrics_notes.txt`).
 
 Signals are read by role (cosim.scenario.roles): below, `vehicle.vx` is the vx of
@@ -64,7 +65,7 @@ import numpy as np
 from cosim.analysis.collisions import bodies_overlap, contact_events
 from cosim.analysis.cones import cone_hits
 from cosim.analysis.generic import STATISTICS, no_roles_note, parse_statistic_name, signal_statistics
-from cosim.analysis.stats import finite_or_note, rms
+from cosim.analysis.stats import drop_non_finite, finite_or_note, rms
 from cosim.results.jsonfile import write_text_atomically
 from cosim.analysis.rundata import (AnalysisError, RunData, load_run, loaded_run,
                                    read_json_object)
@@ -313,6 +314,13 @@ def analyse_run(run: RunData, skip_s: float | None = None) -> MetricsReport:
             `metrics.skip_s`, default 0.
     """
     report = MetricsReport()
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is noted, not warned
+        _analyse(run, skip_s, report)
+    drop_non_finite(report.values, report.notes)
+    return report
+
+
+def _analyse(run: RunData, skip_s: float | None, report: MetricsReport) -> None:
     if run.every > 1:
         report.notes.append(f"computed from the recorded rows (every {run.every}-th tick, "
                             "record.every), not every tick: metrics.json of the run itself "
@@ -321,17 +329,17 @@ def analyse_run(run: RunData, skip_s: float | None = None) -> MetricsReport:
         skip_s = run.number("metrics.skip_s", 0.0)
     if len(run.time) == 0:
         report.notes.append("signals.csv has no rows: no metrics")
-        return report
+        return
     mask = run.time >= run.time[0] + skip_s
     no_ticks = f"skip_s={skip_s} s leaves no ticks: time-series metrics left out"
     if not run.vehicle_run:
         report.notes.append(no_roles_note(run))
         if not mask.any():
             report.notes.append(no_ticks)
-            return report
+            return
         report.values, notes = signal_statistics(run, mask)
         report.notes += notes
-        return report
+        return
     if not mask.any():
         report.notes.append(no_ticks)
     else:
@@ -340,7 +348,6 @@ def analyse_run(run: RunData, skip_s: float | None = None) -> MetricsReport:
     _friction_metrics(run, report)
     _cone_metric(run, report)
     _following_metrics(run, mask, report)
-    return report
 
 
 def compute_metrics(run_dir: str | Path, skip_s: float | None = None) -> dict[str, float]:

@@ -12,8 +12,10 @@ Their default outputs go to comparisons/ and sweeps/, not runs/, so that
 `cosim compare runs/*` sees only run folders; compare skips, with a note, an
 argument that is a compare or sweep output folder.
 
-A user error (missing run folder, bad --vary, unreachable scheduler) prints
-one line on stderr and exits with status 2, without a traceback.
+A user error (missing run folder, bad --vary, --seed or --transport, a malformed or
+unreachable scheduler, an --out under a regular file or where nothing can be written)
+prints one line on stderr and exits with status 2, without a traceback. A missing --out
+folder is created, with its parents.
 """
 
 from __future__ import annotations
@@ -38,7 +40,8 @@ def plot(run_dir: Path = typer.Argument(..., help="run folder"),
                                      "with its unit: a glob over component.signal, quoted "
                                      "(repeatable: --signals 'ball.*' --signals '*.vx')"),
          out: Optional[Path] = typer.Option(
-             None, "--out", help="PNG file to write (default: RUN_DIR/figure_<layout>.png)"),
+             None, "--out", help="PNG file to write, its folder created if missing "
+                                 "(default: RUN_DIR/figure_<layout>.png)"),
          ) -> None:
     """Redraw the figure of a run: paper-style for a vehicle run, else its signals against time.
 
@@ -48,10 +51,13 @@ def plot(run_dir: Path = typer.Argument(..., help="run folder"),
 
         cosim plot RUN_DIR --signals 'ball.*' --out /tmp/ball.png
     """
-    from cosim.figures.layouts import draw_figures
+    from cosim.analysis.outputs import check_output_file
     from cosim.analysis.rundata import load_run
+    from cosim.figures.layouts import draw_figures
 
     try:
+        if out is not None:
+            check_output_file(out, f"--out {out}")
         paths = draw_figures(run_dir, layout, run=load_run(run_dir), signals=signals or (), out=out)
     except UserError as exc:
         raise _fail(exc) from None
@@ -80,12 +86,14 @@ def output_folder_kind(folder: Path) -> str | None:
 def compare(run_dirs: list[Path] = typer.Argument(
                 ..., help="one or more run folders (compare and sweep outputs are skipped)"),
             out: Optional[Path] = typer.Option(
-                None, "--out", help="output folder (default: comparisons/compare-<UTC time>)"),
+                None, "--out", help="output folder, created if missing "
+                                    "(default: comparisons/compare-<UTC time>)"),
             layout: Optional[str] = typer.Option(
                 None, "--layout", help="track | manoeuvre | speed (Fig. 4.3/4.4: one column per run) | following "
                                      "| signals (every signal against time)")
             ) -> None:
     """Overlay one or more runs' figures and tabulate their metrics side by side."""
+    from cosim.analysis.outputs import check_folder
     from cosim.figures.compare import compare_runs
 
     runs = []
@@ -100,6 +108,7 @@ def compare(run_dirs: list[Path] = typer.Argument(
                               f"({', '.join(str(d) for d in run_dirs)})"))
     out_dir = out if out is not None else stamped_folder(COMPARE_OUTPUTS, "compare")
     try:
+        check_folder(out_dir, None if out is None else f"--out {out}")
         paths = compare_runs(runs, out_dir, layout)
     except UserError as exc:
         raise _fail(exc) from None
@@ -146,6 +155,7 @@ def sweep(scenario: str = typer.Argument(..., help="scenario YAML file, or a shi
 
     Example: cosim sweep lane_change --vary 'components.controller.parameters.ke=2:6' --samples 4
     """
+    from cosim.analysis.outputs import check_folder
     from cosim.execution.sweep import run_sweep
     from cosim.scenario.shipped import find_scenario
 
@@ -153,6 +163,7 @@ def sweep(scenario: str = typer.Argument(..., help="scenario YAML file, or a shi
     out_dir = out if out is not None else stamped_folder(
         SWEEP_OUTPUTS, f"{scenario_file.stem}-s{seed}-n{samples}")
     try:
+        check_folder(out_dir, None if out is None else f"--out {out}")
         result = run_sweep(scenario_file, vary, samples, seed=seed, scheduler=scheduler,
                            out_dir=out_dir, transport=transport, method=method,
                            sets=sets or ())

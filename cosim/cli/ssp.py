@@ -12,7 +12,7 @@ from cosim.errors import UserError
 
 
 def export_ssp(file: str = typer.Argument(..., help="scenario YAML file, or a shipped scenario's name"),
-               out: Path = typer.Argument(..., help="the .ssp file to write"),
+               out: Path = typer.Argument(..., help="the .ssp file to write (its folder created if missing)"),
                set_: list[str] = typer.Option([], "--set", help="override PATH=VALUE"),
                ssp_version: str = typer.Option("1.0", "--ssp-version",
                                                help="SSP version to write: 1.0 or 2.0")) -> None:
@@ -20,6 +20,7 @@ def export_ssp(file: str = typer.Argument(..., help="scenario YAML file, or a sh
 
     Example: cosim export-ssp lane_change plant.ssp
     """
+    from cosim.analysis.outputs import check_output_file
     from cosim.execution.ssp_export import export_ssp as write
     from cosim.scenario.loader import load_scenario
     from cosim.scenario.shipped import resolve_scenario
@@ -27,6 +28,7 @@ def export_ssp(file: str = typer.Argument(..., help="scenario YAML file, or a sh
     try:
         if out.suffix.lower() != ".ssp":
             raise UserError(f"{out}: the output file must end in .ssp")
+        check_output_file(out)
         report = write(load_scenario(resolve_scenario(file), overrides=set_), out, ssp_version)
     except UserError as error:
         raise user_error_exit(error) from None

@@ -32,8 +32,11 @@ def export_ssp(scenario: Any, out: Path, version: str = "1.0") -> ExportReport:
 
     Raises:
         UserError: the scenario does not validate, has no FMU component, or an
-            FMU-to-FMU connection has a delay (SSP has no delay on connections).
+            FMU-to-FMU connection has a delay (SSP has no delay on connections); `out`
+            cannot be written (a folder of that name, a file in its folder's place, no
+            permission). Its folder is created if missing.
     """
+    from cosim.analysis.outputs import output_file, write_failure
     from cosim.execution.prepare import plan_fmus
     from cosim.execution.validate import validate_scenario
     from cosim.scenario.ssp_write import ExportComponent, ExportSystem, write_ssp
@@ -59,7 +62,10 @@ def export_ssp(scenario: Any, out: Path, version: str = "1.0") -> ExportReport:
     start = fmu_hosting.start_time(scenario, list(plans.values()))
     system = ExportSystem(scenario.name, version, start, scenario.duration,
                           scenario.tick, components, edges)
-    write_ssp(system, out)
+    try:
+        write_ssp(system, output_file(out))
+    except OSError as exc:
+        raise write_failure(out, exc) from None
     left_out += [f"component {n}" for n in checked["components"] if n not in plans]
     return ExportReport(len(components), len(edges), left_out)
 

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from cosim.analysis.outputs import make_folder, write_failure
 from cosim.analysis.rundata import AnalysisError
 from cosim.scenario.imports import import_roots
 
@@ -82,11 +83,13 @@ def sample_points(varies: Sequence[Vary], samples: int, seed: int,
     Args:
         varies: the ranges.
         samples: number of points (>= 1).
-        seed: seed of numpy's default generator (same seed, same points).
+        seed: seed of numpy's default generator (same seed, same points), from 0 up.
         method: "lhs" (Latin hypercube) or "uniform".
     """
     if samples < 1:
         raise AnalysisError(f"--samples {samples}: need at least 1")
+    if seed < 0:  # numpy's generators take a seed from 0 up
+        raise AnalysisError(f"--seed {seed}: must be a whole number from 0 up")
     if method not in METHODS:
         raise AnalysisError(f"--method {method!r}: choose from {', '.join(METHODS)}")
     rng = np.random.default_rng(seed)
@@ -117,11 +120,14 @@ def summarize(values: Sequence[float]) -> dict[str, float]:
         values: at least one finite number.
     """
     v = np.asarray(values, dtype=float)
-    p5, p50, p95 = np.percentile(v, [5, 50, 95])
-    return {"n": float(len(v)), "mean": float(np.mean(v)),
-            "std": float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
-            "min": float(np.min(v)), "p5": float(p5), "p50": float(p50),
-            "p95": float(p95), "max": float(np.max(v))}
+    # values near the largest float: a sum or a square overflows and the mean or the std is
+    # then inf or nan, shown as such in the table, without numpy's warnings
+    with np.errstate(over="ignore", invalid="ignore"):
+        p5, p50, p95 = np.percentile(v, [5, 50, 95])
+        return {"n": float(len(v)), "mean": float(np.mean(v)),
+                "std": float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
+                "min": float(np.min(v)), "p5": float(p5), "p50": float(p50),
+                "p95": float(p95), "max": float(np.max(v))}
 
 
 @dataclass
@@ -394,12 +400,42 @@ def prompt_client(address: Any, **options: Any) -> Any:
         return Client(address, **options)
 
 
+SCHEDULER_EXAMPLE = "tcp://127.0.0.1:8786"
+_HOST_PORT_SCHEMES = ("tcp", "tls", "ws", "wss")
+
+
+def check_scheduler(address: str) -> str:
+    """A `--scheduler` value that reads as a Dask scheduler address, before anything starts
+    (Dask's own check came only as the client connected, as a ValueError's traceback).
+
+    Args:
+        address: e.g. "tcp://127.0.0.1:8786", or "127.0.0.1:8786" (tcp implied).
+    Raises:
+        AnalysisError naming the option, the value and the expected form.
+    """
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import get_backend
+
+    problem = (f"--scheduler {address!r}: expected a Dask scheduler address "
+               f"PROTOCOL://HOST:PORT (port 1..65535), e.g. {SCHEDULER_EXAMPLE}")
+    try:
+        scheme, location = parse_address(address)
+        get_backend(scheme)
+        if scheme in _HOST_PORT_SCHEMES:
+            host, port = parse_host_port(location)
+            if not host or not 0 < port <= 65535:
+                raise ValueError(location)
+    except ValueError:
+        raise AnalysisError(problem) from None
+    return address
+
+
 def _client(scheduler: str | None, workers: int, cluster_options: dict[str, Any] | None):
     """A Dask client and the local cluster it owns (None when joining a scheduler)."""
     if scheduler:
         try:
             return prompt_client(scheduler, timeout="10s"), None
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:
             raise AnalysisError(f"--scheduler {scheduler}: cannot connect: {exc}") from None
     cluster = local_cluster(workers, **(cluster_options or {}))
     return prompt_client(cluster), cluster
@@ -517,7 +553,10 @@ def write_sweep_files(result: SweepResult, settings: dict[str, Any]) -> list[Pat
              "summary.csv": summary_csv, "summary.md": summary_md,
              "sweep.json": json.dumps(settings, indent=2) + "\n"}
     for name, text in files.items():
-        (out / name).write_text(text)
+        try:
+            (out / name).write_text(text)
+        except OSError as exc:
+            raise write_failure(out / name, exc) from None
     return [out / name for name in files]
 
 
@@ -535,14 +574,20 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
         samples: number of sampled runs.
         seed: sampling seed.
         scheduler: address of a Dask scheduler ("tcp://host:8786"); None: a LocalCluster.
-        out_dir: the sweep's output folder (created).
+        out_dir: the sweep's output folder (created, with its missing parents).
         transport: transport of each run ("inproc" or "zenoh").
         method: "lhs" or "uniform".
         run_fn: (scenario_path, overrides, run_dir, transport) -> metrics; default
             `run_scenario_sample`. Must be picklable for process workers.
         cluster_options: extra LocalCluster keyword arguments (e.g. processes=False).
         sets: fixed "PATH=VALUE" overrides applied to every sample before the varied ones.
+    Raises:
+        UserError: a bad argument (range, count, seed, method, transport, scheduler address,
+            an output folder that cannot be made), before any sample runs; an invalid sample
+            (see SampleCheck); a scheduler that cannot be reached.
     """
+    from cosim.execution.run import check_run_options
+
     parsed = [v if isinstance(v, Vary) else parse_vary(v) for v in varies]
     if not parsed:
         raise AnalysisError("sweep: give at least one --vary PATH=LOW:HIGH")
@@ -552,9 +597,12 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
     scenario_path = Path(scenario_path).resolve()
     if not scenario_path.is_file():
         raise AnalysisError(f"{scenario_path}: scenario file not found")
+    check_run_options(transport, None)  # else every sample would fail on it, on the cluster
+    if scheduler is not None:
+        check_scheduler(scheduler)
     points = sample_points(parsed, samples, seed, method)
-    out = Path(out_dir)
-    (out / "samples").mkdir(parents=True, exist_ok=True)
+    out = make_folder(out_dir)
+    make_folder(out / "samples")
     jobs = [(i, list(sets) + [format_override(v.path, x) for v, x in zip(parsed, row)],
              (out / "samples" / f"sample_{i:04d}").resolve()) for i, row in enumerate(points)]
     roots = import_roots(scenario_path)

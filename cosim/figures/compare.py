@@ -19,6 +19,7 @@ from pathlib import Path
 
 from cosim.figures.layouts import build_figure, save_png
 from cosim.analysis.metrics import analyse_run, ordered_metric_names
+from cosim.analysis.outputs import check_folder, make_folder, write_failure
 from cosim.analysis.rundata import AnalysisError, RunData, load_run, read_json_object
 
 
@@ -86,6 +87,9 @@ def compare_runs(run_dirs: Sequence[str | Path], out_dir: str | Path,
 
     Returns:
         The files written: compare_<layout>.png, compare_metrics.csv, compare_metrics.md.
+    Raises:
+        UserError: a run folder cannot be read, or the output folder cannot be made or
+            written (a file in its place, no permission).
     """
     if not run_dirs:
         raise AnalysisError("compare: give at least one run folder")
@@ -93,13 +97,16 @@ def compare_runs(run_dirs: Sequence[str | Path], out_dir: str | Path,
     runs = [load_run(d) for d in dirs]
     for run, label in zip(runs, run_labels(dirs)):
         run.label_override = label
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_folder(out_dir)
     fig, layout = build_figure(runs, layout)
-    png = save_png(fig, out / f"compare_{layout}.png")
+    png = save_png(fig, make_folder(out) / f"compare_{layout}.png")
     labels = [r.label for r in runs]
     names, rows = metrics_table(labels, [run_metrics(r) for r in runs])
     csv_path, md_path = out / "compare_metrics.csv", out / "compare_metrics.md"
-    csv_path.write_text(_csv_text(labels, names, rows))
-    md_path.write_text(_markdown_text(labels, names, rows))
+    for path, text in ((csv_path, _csv_text(labels, names, rows)),
+                       (md_path, _markdown_text(labels, names, rows))):
+        try:
+            path.write_text(text)
+        except OSError as exc:
+            raise write_failure(path, exc) from None
     return [png, csv_path, md_path]

@@ -35,6 +35,8 @@ Figures are built on matplotlib's Agg backend without pyplot, so drawing
 touches no global state. Time series are drawn through their min/max envelope
 (cosim.figures.envelope: every peak kept exactly, a few thousand points per
 line instead of one per tick), and one Agg draw both lays out and renders.
+An axis whose data reach beyond +-1e300 (values near the largest float, which
+matplotlib cannot lay out) is clipped to that range, with a note in its panel.
 """
 
 from __future__ import annotations
@@ -49,11 +51,12 @@ from PIL import Image
 
 from cosim.figures import fidelity_panels as fp
 from cosim.figures import panels as pan
-from cosim.figures.thin import DPI
+from cosim.figures.thin import AXIS_LIMIT, DPI
 from cosim.figures.following import following_figure
 from cosim.figures import signals as sig
 from cosim.figures.signal_plot import default_signals, select_signals, signals_figure
 from cosim.analysis.metrics import lead_component
+from cosim.analysis.outputs import check_output_file, output_file, write_failure
 from cosim.analysis.rundata import AnalysisError, RunData, loaded_run
 
 LAYOUTS = ("track", "manoeuvre", "speed", "following", "signals")
@@ -174,6 +177,14 @@ def build_figure(runs: Sequence[RunData], layout: str | None = None,
     Raises:
         AnalysisError: an unknown layout, or a pattern that matches no recorded signal.
     """
+    # values near the largest float overflow in the panels' arithmetic: the axes are then
+    # clipped (clip_huge_axes), numpy's warnings would only be noise
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _build_figure(runs, layout, signals)
+
+
+def _build_figure(runs: Sequence[RunData], layout: str | None,
+                  signals: Sequence[str]) -> tuple[Figure, str]:
     if not runs:
         raise AnalysisError("no run to draw")
     if signals:
@@ -192,6 +203,43 @@ def build_figure(runs: Sequence[RunData], layout: str | None = None,
     return fig, layout
 
 
+def clip_huge_axes(fig: Figure) -> list[str]:
+    """Limit every axis whose data reach beyond +-AXIS_LIMIT to that range, noted in its panel.
+
+    Matplotlib lays an axis out from its data limits: with values near the largest
+    float (1.8e308) their span, the margins or the ticks overflow and the drawing fails.
+    The lines stay whole; what lies beyond the limit is cut at the panel's edge.
+
+    Args:
+        fig: the figure, built and not yet drawn.
+    Returns:
+        The titles of the panels clipped ("" for a panel without one).
+    """
+    clipped = []
+    for ax in fig.axes:
+        box, axes_clipped = ax.dataLim, []
+        for name, (low, high), set_limits in (("x", box.intervalx, ax.set_xlim),
+                                               ("y", box.intervaly, ax.set_ylim)):
+            if not (np.isfinite(low) and np.isfinite(high) and low <= high):
+                continue  # no data on this axis
+            if max(abs(low), abs(high)) <= AXIS_LIMIT:
+                continue
+            low, high = (float(np.clip(v, -AXIS_LIMIT, AXIS_LIMIT)) for v in (low, high))
+            if low == high:  # all beyond the same side: the axis from 0 to the limit
+                low, high = min(low, 0.0), max(high, 0.0)
+            # no autoscaling first, nor an equal aspect met by moving the limits: either
+            # would lay the axis out from the data, overflowing
+            getattr(ax, f"set_autoscale{name}_on")(False)
+            ax.set_adjustable("box")
+            set_limits(low, high)
+            axes_clipped.append(name)
+        if axes_clipped:
+            ax.text(0.01, 0.99, f"{' and '.join(axes_clipped)} beyond +-{AXIS_LIMIT:g} not shown",
+                    transform=ax.transAxes, ha="left", va="top", fontsize=7, color="red")
+            clipped.append(ax.get_title())
+    return clipped
+
+
 def save_png(fig: Figure, path: Path) -> Path:
     """Render a figure with Agg into `path` (PNG) and return the path.
 
@@ -202,13 +250,20 @@ def save_png(fig: Figure, path: Path) -> Path:
 
     Args:
         fig: the figure (built on the Agg canvas, without pyplot).
-        path: the PNG file to write.
+        path: the PNG file to write (its folder exists).
+    Raises:
+        UserError: the file cannot be written (no permission, a folder of that name).
     """
     fig.set_dpi(DPI)
     canvas = FigureCanvasAgg(fig)
-    canvas.draw()
+    with np.errstate(over="ignore", invalid="ignore"):
+        clip_huge_axes(fig)
+        canvas.draw()
     image = Image.fromarray(np.asarray(canvas.buffer_rgba()))
-    image.save(path, format="png", compress_level=PNG_COMPRESS_LEVEL, dpi=(DPI, DPI))
+    try:
+        image.save(path, format="png", compress_level=PNG_COMPRESS_LEVEL, dpi=(DPI, DPI))
+    except OSError as exc:
+        raise write_failure(path, exc) from None
     return path
 
 
@@ -223,11 +278,14 @@ def draw_figures(run_dir: str | Path, layout: str | None = None,
         run: `run_dir` already loaded (`load_run`), so a caller that also writes
             the metrics parses signals.csv once; None loads it here.
         signals: glob patterns of signals to draw against time instead (see build_figure).
-        out: the PNG file to write instead of the run folder's.
+        out: the PNG file to write instead of the run folder's (its folder is created
+            if missing).
 
     Returns:
         The PNG files written.
     """
     run = loaded_run(run_dir, run)
+    if out is not None:
+        check_output_file(out)
     fig, layout = build_figure([run], layout, signals)
-    return [save_png(fig, Path(out) if out is not None else Path(run_dir) / f"figure_{layout}.png")]
+    return [save_png(fig, output_file(out) if out is not None else Path(run_dir) / f"figure_{layout}.png")]

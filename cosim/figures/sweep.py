@@ -16,6 +16,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 
 from cosim.figures.layouts import save_png
+from cosim.figures.thin import AXIS_LIMIT
 
 # figure edges to the panels, in inches: the top one holds the figure's title, then the
 # panels' titles need TITLE_LINE_IN a line; ROW_GAP_IN holds a row's tick labels
@@ -67,10 +68,14 @@ def sweep_figure(samples: dict[str, list[float]], summary: dict[str, dict[str, f
                         wspace=0.4, hspace=gap_in / panel_in)
     axes = np.atleast_1d(fig.subplots(rows, cols)).ravel()
     for ax, name, panel_title in zip(axes, names, titles):
-        ax.hist(samples[name], bins=min(20, max(1, len(samples[name]))), color="tab:blue",
-                alpha=0.7)
-        for stat, style in (("p5", ":"), ("p50", "-"), ("p95", ":")):
-            ax.axvline(summary[name][stat], color="k", ls=style, lw=1, label=stat)
+        if max(abs(v) for v in samples[name]) > AXIS_LIMIT:  # numpy cannot bin such a span
+            ax.text(0.5, 0.5, f"values beyond +-{AXIS_LIMIT:g}: no histogram\n(see summary.csv)",
+                    transform=ax.transAxes, ha="center", va="center", fontsize=8, color="red")
+        else:
+            ax.hist(samples[name], bins=min(20, max(1, len(samples[name]))), color="tab:blue",
+                    alpha=0.7)
+            for stat, style in (("p5", ":"), ("p50", "-"), ("p95", ":")):
+                ax.axvline(summary[name][stat], color="k", ls=style, lw=1, label=stat)
         # the title names the metric (no x label to repeat it); counts of 10^4 and more
         # written 10k, so the count labels fit the fixed left margin
         ax.set_title(panel_title, fontsize=9)
@@ -79,7 +84,7 @@ def sweep_figure(samples: dict[str, list[float]], summary: dict[str, dict[str, f
         ax.yaxis.set_major_formatter(COUNT_LABELS)
     for ax in axes[len(names):]:
         ax.set_visible(False)
-    if names:
+    if names and axes[0].get_legend_handles_labels()[0]:
         axes[0].legend(fontsize=7)
     fig.suptitle(title)
     return fig

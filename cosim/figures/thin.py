@@ -15,6 +15,9 @@ from matplotlib.axes import Axes
 
 PIXEL_FRACTION = 0.25  # kept points at least this many pixels apart along the path
 DPI = 110  # the resolution the PNGs are rendered at (cosim.figures.layouts.save_png)
+# the largest |value| an axis shows (cosim.figures.layouts.clip_huge_axes): beyond it the
+# span, margins or ticks matplotlib computes to lay the axis out can overflow a float
+AXIS_LIMIT = 1e300
 
 
 def pixel_size(ax: Axes, x: np.ndarray, y: np.ndarray, dpi: float) -> float:

@@ -23,6 +23,7 @@ from matplotlib.axes import Axes
 
 from cosim.figures import signals as sig
 from cosim.analysis.rundata import RunData
+from cosim.figures.thin import AXIS_LIMIT
 
 ZOOM_FACTOR = 4.0            # half-width of the box in units of the largest |yc_cg|
 ZOOM_MIN_HALF_WIDTH = 0.05   # m: a run with (almost) no error still gets a readable box
@@ -107,6 +108,11 @@ def zoom_map(ax: Axes, runs: Sequence[RunData], colors: Sequence[str], labels: S
     t = float(runs[i].time[k])
     cx, cy = (float(v[k]) for v in vehicle_xy(runs[i]))
     half = zoom_half_width(size)
+    if not (half <= AXIS_LIMIT and abs(cx) <= AXIS_LIMIT and abs(cy) <= AXIS_LIMIT):
+        ax.text(0.5, 0.5, f"|yc_cg| = {size:.4g} m at x = {cx:.4g} m, y = {cy:.4g} m "
+                f"(t = {t:.2f} s):\nbeyond what an axis can show",
+                transform=ax.transAxes, ha="center", va="center", fontsize=8, color="red")
+        return
     planned = planned_window_at(runs[i], t)
     if planned is not None:
         ax.plot(planned[0] - cx, planned[1] - cy, ":", color="k", lw=1.2,
