@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from cosim.analysis.columns import ColumnFile, LazyColumns
+from cosim.results.csv_writer import parse_header_line, read_header_record
 from cosim.errors import UserError
 from cosim.scenario.roles import resolve_roles
 
@@ -98,11 +99,16 @@ def read_csv_table(path: Path) -> tuple[list[str], np.ndarray]:
         streamed = _read_csv_streaming(path)
         if streamed is not None:
             return streamed
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise AnalysisError(f"{path}: cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise AnalysisError(f"{path}: not UTF-8 text: {exc.reason} at byte {exc.start}") from None
     lines = text.split("\n")
-    header = [h.strip() for h in lines[0].split(",")]
+    record = lines[0]
+    while record.count('"') % 2 and len(lines) > 1:  # a quoted name with a line break
+        record += "\n" + lines.pop(1)
+    header = _header(path, record)
     if not header or header[0] != "time":
         raise AnalysisError(f"{path}:1: header must start with 'time', found {lines[0][:40]!r}")
     body = lines[1:]
@@ -124,9 +130,11 @@ def read_csv_columns(path: Path) -> tuple[list[str], ColumnFile | np.ndarray]:
         (column names, the columns).
     """
     try:
-        with open(path) as handle:
-            header = [h.strip() for h in handle.readline().rstrip("\n").split(",")]
-            rows = _complete_rows(path, len(header)) if header[0] == "time" else None
+        with open(path, encoding="utf-8") as handle:
+            record = read_header_record(handle)
+            header = _header(path, record)
+            rows = (_complete_rows(path, len(header), max(1, record.count("\n")))
+                    if header[0] == "time" else None)
             table = None if rows is None else ColumnFile.parse(handle, len(header), rows,
                                                                near=path.parent)
     except OSError as exc:
@@ -143,11 +151,12 @@ def _read_csv_streaming(path: Path) -> tuple[list[str], np.ndarray] | None:
     The text of a long run is several times the size of its floats: holding it (and its
     lines) made the analysis's peak memory grow with the run's duration.
     """
-    with open(path) as handle:
-        header = [h.strip() for h in handle.readline().rstrip("\n").split(",")]
+    with open(path, encoding="utf-8") as handle:
+        record = read_header_record(handle)
+        header = _header(path, record)
         if header[0] != "time":
             return None
-        rows = _complete_rows(path, len(header))
+        rows = _complete_rows(path, len(header), max(1, record.count("\n")))
         if rows is None:
             return None
         if rows == 0:
@@ -160,9 +169,21 @@ def _read_csv_streaming(path: Path) -> tuple[list[str], np.ndarray] | None:
     return (header, data) if data.shape == (rows, len(header)) else None
 
 
-def _complete_rows(path: Path, width: int, chunk: int = 1 << 20) -> int | None:
+def _header(path: Path, record: str) -> list[str]:
+    """The column names of a header record (names quoted where they hold a comma, quote,
+    semicolon or line break, as the recorder writes them)."""
+    try:
+        return [h.strip() for h in parse_header_line(record)] or [""]
+    except ValueError as exc:
+        raise AnalysisError(f"{path}:1: {exc}") from None
+
+
+def _complete_rows(path: Path, width: int, header_breaks: int = 1,
+                   chunk: int = 1 << 20) -> int | None:
     """Data rows of a CSV whose last line may be partial (dropped unless it has `width` fields),
-    counted in one pass over the bytes; None if some line is blank."""
+    counted in one pass over the bytes; None if some line is blank.
+    `header_breaks`: the line breaks of the header record (more than 1 when a quoted name
+    holds one)."""
     newlines, tail, previous = 0, b"", b""
     with open(path, "rb") as source:
         while block := source.read(chunk):
@@ -172,9 +193,9 @@ def _complete_rows(path: Path, width: int, chunk: int = 1 << 20) -> int | None:
             cut = block.rfind(b"\n")
             tail = block[cut + 1:] if cut >= 0 else tail + block
             previous = block[-1:]
-    if newlines == 0:
+    if newlines < header_breaks:
         return 0   # the header alone
-    complete = newlines - 1
+    complete = newlines - header_breaks
     if tail.strip(b"\r") and tail.count(b",") + 1 == width:
         complete += 1   # a last row written whole, without its newline
     return complete

@@ -4,7 +4,9 @@ The recorder (`cosim.results.recorder`) appends every row of a table (signals.cs
 one array signal's CSV) as raw float64 values to a spool file `<stem>.f64`,
 described by a small JSON header `<stem>.f64.json` (column names, the CSV's
 file name, byte order). This module turns spool rows into the CSV text of the
-recorder's contract: a header line of column names, then one line per row with
+recorder's contract, in UTF-8: a header line of column names (a name holding a comma,
+quote, semicolon or line break in double quotes, RFC 4180: `csv_header_field`; read back by
+`read_header_record` and `parse_header_line`), then one line per row with
 every float written by `repr` (the shortest text that reads back to the same
 float64), except in the header's `integer_columns` (integer and Boolean
 signals), written as integers ("3", not "3.0"; exact, since the store holds
@@ -31,14 +33,16 @@ metadata (unit, description), which the other writers (Parquet) use.
 Only the standard library is imported, so the process starts fast; it is run
 as a script (`python -S csv_writer.py HEADER...`). Protocol: the CSV files
 already hold their header line; the writer appends the complete rows it finds,
-polling. A line "close" on stdin means the spool is complete: it converts the
-rest, prints {"rows": {HEADER: rows}} as JSON on stdout and exits 0. End of
+polling, in chunks of whole rows (at least one, however wide). A line "close"
+on stdin means the spool is complete: it converts the rest, prints {"rows": {HEADER: rows}} as JSON on stdout and exits 0. End of
 stdin without "close" (the master died) converts what is on disk, prints the
 same and exits 3, leaving the spool for `cosim recover`.
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import math
 import os
@@ -56,6 +60,8 @@ SPOOL_FORMAT = "cosim-spool-f64"
 DATA_OFFSET = 4096  # rows start here; the first 8 bytes count the complete rows
 POLL_S = 0.2
 CHUNK_BYTES = 1 << 16  # converted per read: bounds the writer's memory (flat with duration)
+# a header field in these is quoted (RFC 4180); ";" too, for tools that guess the delimiter
+QUOTED_CHARACTERS = frozenset(',";\r\n')
 EXIT_MASTER_GONE = 3
 
 
@@ -79,6 +85,8 @@ class SpoolHeader:
         period: ticks per spool row.
         formats: the files this spool becomes: "csv", and "parquet" if asked.
         meta: per column, {"unit", "description"} ({} when not known).
+        pid: the recording process (absent in older runs); it holds the recording lock
+            on the signals spool while it records (`cosim.results.recorder.hold_recording_lock`).
     """
 
     path: Path
@@ -91,6 +99,7 @@ class SpoolHeader:
     period: int = 1
     formats: tuple[str, ...] = ("csv",)
     meta: tuple[dict, ...] = ()
+    pid: int | None = None
 
     @property
     def stride(self) -> int:
@@ -124,8 +133,13 @@ class SpoolHeader:
         return 8 * len(self.columns)
 
     def csv_header_line(self) -> str:
-        """The CSV's first line."""
-        return ",".join(self.columns) + "\n"
+        """The CSV's first line (`csv_header_field` of each column)."""
+        return ",".join(map(csv_header_field, self.columns)) + "\n"
+
+    @property
+    def chunk_bytes(self) -> int:
+        """Bytes converted per read: whole rows, at least one however wide a row is."""
+        return max(1, CHUNK_BYTES // self.row_bytes) * self.row_bytes
 
     def committed_bytes(self, fd: int) -> int:
         """Bytes of complete rows in the open spool `fd` (from its row count, if it has one)."""
@@ -136,10 +150,43 @@ class SpoolHeader:
         return max(0, min(count * self.row_bytes, available // self.row_bytes * self.row_bytes))
 
 
+def csv_header_field(name: str) -> str:
+    """A column name as the CSV header writes it: as is, or quoted (RFC 4180: in double
+    quotes, a quote doubled) when it holds a comma, quote, semicolon or line break."""
+    if QUOTED_CHARACTERS.isdisjoint(name):
+        return name
+    return '"' + name.replace('"', '""') + '"'
+
+
+def parse_header_line(text: str) -> list[str]:
+    """The column names of a CSV header record written by `SpoolHeader.csv_header_line`
+    (quoted names included; `text` holds the whole record, line breaks in quotes too).
+
+    Raises:
+        ValueError when the record is not one well-formed CSV record.
+    """
+    try:
+        records = list(csv.reader(io.StringIO(text, newline=""), strict=True))
+    except csv.Error as exc:
+        raise ValueError(f"header: {exc}") from None
+    if len(records) != 1:
+        raise ValueError(f"header: expected one line of column names, found {len(records)}")
+    return records[0]
+
+
+def read_header_record(handle: IO[str]) -> str:
+    """The header record of a recorder CSV from its start: the first line, and the
+    further lines while a quoted name holds line breaks (an odd count of quotes so far)."""
+    record = handle.readline()
+    while record.count('"') % 2 and (more := handle.readline()):
+        record += more
+    return record
+
+
 def write_header(spool_path: Path, csv_name: str, columns: list[str],
                  data_offset: int = DATA_OFFSET, integer_columns: tuple[str, ...] = (),
                  every: int = 1, period: int = 1, formats: tuple[str, ...] = ("csv",),
-                 meta: tuple[dict, ...] = ()) -> SpoolHeader:
+                 meta: tuple[dict, ...] = (), pid: int | None = None) -> SpoolHeader:
     """Write the JSON header of a spool (atomically) and return it.
 
     Args:
@@ -148,13 +195,15 @@ def write_header(spool_path: Path, csv_name: str, columns: list[str],
         columns: column names, "time" first.
         data_offset: where the rows start in the spool (see `SpoolHeader`).
         integer_columns: columns written as integers.
-        every / period / formats / meta: see `SpoolHeader`.
+        every / period / formats / meta / pid: see `SpoolHeader`.
     """
     path = spool_path.with_name(spool_path.name + ".json")
     data = {"format": SPOOL_FORMAT, "csv": csv_name, "columns": list(columns),
             "byteorder": sys.byteorder, "data_offset": data_offset,
             "integer_columns": list(integer_columns), "every": every,
             "period": period, "formats": list(formats), "meta": list(meta)}
+    if pid is not None:
+        data["pid"] = pid
     tmp = path.with_name(path.name + ".tmp")
     try:
         tmp.write_text(json.dumps(data) + "\n", encoding="utf-8")
@@ -163,7 +212,7 @@ def write_header(spool_path: Path, csv_name: str, columns: list[str],
         _discard(tmp)
         raise
     return SpoolHeader(path, tuple(columns), csv_name, sys.byteorder, data_offset,
-                       tuple(integer_columns), every, period, tuple(formats), tuple(meta))
+                       tuple(integer_columns), every, period, tuple(formats), tuple(meta), pid)
 
 
 def _discard(path: Path) -> None:
@@ -192,9 +241,9 @@ def read_header(path: Path) -> SpoolHeader:
         raise SpoolError(f"{path}: format: expected {SPOOL_FORMAT!r}, got {data.get('format')!r}")
     columns = data.get("columns")
     if (not isinstance(columns, list) or not columns
-            or not all(isinstance(c, str) and c and not set(c) & set(",\n\r") for c in columns)):
-        raise SpoolError(f"{path}: columns: expected a non-empty list of names without "
-                         f"commas or newlines, got {columns!r}")
+            or not all(isinstance(c, str) and c for c in columns)):
+        raise SpoolError(f"{path}: columns: expected a non-empty list of non-empty names, "
+                         f"got {columns!r}")
     csv = data.get("csv")
     if not isinstance(csv, str) or not csv.endswith(".csv") or "/" in csv or "\\" in csv:
         raise SpoolError(f"{path}: csv: expected a file name ending in .csv, got {csv!r}")
@@ -218,8 +267,11 @@ def read_header(path: Path) -> SpoolHeader:
     meta = data.get("meta", [])
     if not isinstance(meta, list) or not all(isinstance(m, dict) for m in meta):
         raise SpoolError(f"{path}: meta: expected a list of objects, got {meta!r}")
+    pid = data.get("pid")
+    if pid is not None and (isinstance(pid, bool) or not isinstance(pid, int) or pid < 1):
+        raise SpoolError(f"{path}: pid: expected a process id, got {pid!r}")
     return SpoolHeader(Path(path), tuple(columns), csv, byteorder, offset, tuple(integers),
-                       every, period, tuple(formats), tuple(meta))
+                       every, period, tuple(formats), tuple(meta), pid)
 
 
 def kept_rows(data: bytes, first: int, header: SpoolHeader) -> tuple[bytes, int]:
@@ -322,7 +374,7 @@ class SpoolTail:
         self.rows = 0
         self._formatter = header.formatter()
         self._fd = os.open(header.spool_path, os.O_RDONLY)
-        self._csv: IO[str] = open(header.csv_path, "a", encoding="ascii", newline="\n")
+        self._csv: IO[str] = open(header.csv_path, "a", encoding="utf-8", newline="\n")
 
     def pump(self) -> int:
         """Convert the complete rows written since the last call (at most one chunk).
@@ -332,7 +384,7 @@ class SpoolTail:
         """
         size = self.header.row_bytes
         end = self.header.committed_bytes(self._fd)
-        data = os.pread(self._fd, min(CHUNK_BYTES // size * size, end - self.offset),
+        data = os.pread(self._fd, min(self.header.chunk_bytes, end - self.offset),
                         self.header.data_offset + self.offset)
         rows = len(data) // size
         if rows:
@@ -368,7 +420,8 @@ def rebuild_csv(header: SpoolHeader) -> tuple[int, int]:
     Returns:
         (CSV rows written, bytes of a partial last spool row that were ignored).
     Raises:
-        SpoolError when the spool file is missing or unreadable.
+        SpoolError when the spool file is missing or unreadable, or when fewer rows
+        could be read than its row count says (the CSV is then left as it was).
     """
     spool = header.spool_path
     try:
@@ -378,14 +431,15 @@ def rebuild_csv(header: SpoolHeader) -> tuple[int, int]:
     size, formatter = header.row_bytes, header.formatter()
     tmp = header.csv_path.with_name(header.csv + ".tmp")
     try:
-        with source, open(tmp, "w", encoding="ascii", newline="\n") as out:
+        with source, open(tmp, "w", encoding="utf-8", newline="\n") as out:
             out.write(header.csv_header_line())
             end = header.committed_bytes(source.fileno())
             partial = 0 if header.data_offset else os.fstat(source.fileno()).st_size - end
-            source.seek(header.data_offset)
             done = written = 0
             while done < end:
-                chunk = source.read(min(CHUNK_BYTES // size * size, end - done))
+                chunk = os.pread(source.fileno(), min(header.chunk_bytes, end - done),
+                                 header.data_offset + done)
+                chunk = chunk[:len(chunk) // size * size]  # a short read: its whole rows
                 if not chunk:
                     break
                 kept, count = kept_rows(chunk, done // size, header)
@@ -393,11 +447,16 @@ def rebuild_csv(header: SpoolHeader) -> tuple[int, int]:
                 done, written = done + len(chunk), written + count
             last = last_row(source.fileno(), header, done // size)
             out.write(formatter.format(last))
+            written += 1 if last else 0
+        expected = header.kept(end // size)
+        if written != expected:
+            raise SpoolError(f"{spool}: only {written} of the {expected} rows its count "
+                             f"holds could be read; {header.csv} left as it was")
         os.replace(tmp, header.csv_path)
-    except OSError:  # a full disk: no half-written .tmp stays behind
+    except (OSError, SpoolError):  # a full disk: no half-written .tmp stays behind
         _discard(tmp)
         raise
-    return written + (1 if last else 0), partial
+    return written, partial
 
 
 def _follow(tails: list[SpoolTail], control: IO[bytes]) -> bool:

@@ -2,7 +2,9 @@
 
 `signals.csv` has a `time` column, then one column per recorded scalar signal
 `component.signal`, one row per master tick (0 = after initialization; with
-`every`, ticks 0, N, 2N, ... and the last). Array signals go to
+`every`, ticks 0, N, 2N, ... and the last), in UTF-8, a column name in double quotes
+when it holds a comma, quote, semicolon or line break (`read_signals` reads it back).
+Array signals go to
 `arrays/<component>.<signal>.csv`, one row per step of their component.
 Floats are written with `repr`, the shortest text that reads back to the
 identical float64, so a reload is bit-identical; integer and Boolean signals
@@ -36,11 +38,18 @@ parsing the CSV (about 0.2 s for the 27,500 rows of satory_nominal). With
 A run folder that cannot be written (disk full, read-only, removed mid-run)
 raises one `RunFolderError` naming the folder, the reason and the tick; the
 recorder then stops writing and keeps its spools for `cosim recover`.
+
+From `begin` to the end of `close` the recorder holds an exclusive `flock` on
+the signals spool (`hold_recording_lock`; its pid is in the spool headers):
+`recover` refuses a folder whose spool is locked (`is_being_recorded`), since
+rebuilding and removing a live spool would cut the run short. The kernel drops
+the lock when the master dies, however it dies; the writer process never takes it.
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import fnmatch
 import json
 import math
@@ -61,7 +70,8 @@ import numpy as np
 from cosim.engine import one_cpu
 from cosim.errors import RunFolderError
 from cosim.results.csv_writer import (DATA_OFFSET, SPOOL_SUFFIX, SpoolError, SpoolHeader,
-                                      rebuild_csv, write_header)
+                                      parse_header_line, read_header_record, rebuild_csv,
+                                      write_header)
 from cosim.results.jsonfile import write_json, write_json_in_place  # noqa: F401 - re-exported
 from cosim.results.parquet import write_parquet
 from cosim.signal_types import is_integer
@@ -131,7 +141,7 @@ class _Table:
         spool = folder / f"{stem}{SPOOL_SUFFIX}"
         self.header: SpoolHeader = write_header(spool, f"{stem}.csv", columns, period=period,
                                                 integer_columns=tuple(integers), **output)
-        with open(self.header.csv_path, "w", encoding="ascii", newline="\n") as csv:
+        with open(self.header.csv_path, "w", encoding="utf-8", newline="\n") as csv:
             csv.write(self.header.csv_header_line())
         self.row_bytes = self.header.row_bytes
         self.fd = os.open(spool, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o644)
@@ -251,6 +261,7 @@ class Recorder:
         self._closed = False
         self.failed: RunFolderError | None = None  # the folder could not be written
         self._started = time.monotonic()
+        self._lock_fd: int | None = None  # `hold_recording_lock` on the signals spool
 
     def records(self, name: str) -> bool:
         """Whether this recorder keeps signal "component.signal"."""
@@ -280,6 +291,7 @@ class Recorder:
                                self._output(["time"] + self.columns),
                                integers=[n for n in self.columns if n in integer],
                                expected_rows=None if ticks is None else ticks + 1)
+        self._lock_fd = hold_recording_lock(self._signals.header.spool_path)
         self._tables = [self._signals]
         groups: dict[int, list[_Table]] = {}
         for comp, signal, offset, size in layout.array_signals():
@@ -317,7 +329,8 @@ class Recorder:
             info = self.column_info.get(array or column, {})
             meta.append({"unit": str(info.get("unit", "")),
                          "description": str(info.get("description", ""))})
-        return {"every": self.every, "formats": self.formats, "meta": tuple(meta)}
+        return {"every": self.every, "formats": self.formats, "meta": tuple(meta),
+                "pid": os.getpid()}
 
     def after_tick(self, tick: int, t: float, values: list[float], arrays: np.ndarray) -> None:
         """Write this tick's raw rows into the spools (in the kernel from here on)."""
@@ -406,14 +419,19 @@ class Recorder:
         if self._closed:
             return
         self._closed = True
-        if self.failed is None:
-            try:
-                self._complete()
-                return
-            except (OSError, SpoolError) as exc:  # SpoolError: the spool went with its folder
-                self._failure(exc, self.rows - 1)
-        self._abandon()
-        raise self.failed  # type: ignore[misc]
+        try:
+            if self.failed is None:
+                try:
+                    self._complete()
+                    return
+                except (OSError, SpoolError) as exc:  # SpoolError: the spool went with its folder
+                    self._failure(exc, self.rows - 1)
+            self._abandon()
+            raise self.failed  # type: ignore[misc]
+        finally:
+            if self._lock_fd is not None:
+                os.close(self._lock_fd)  # the spools are complete or gone: recover may have them
+                self._lock_fd = None
 
     def _complete(self) -> None:
         """close() of a folder that can be written: complete the CSV, remove the spools."""
@@ -422,11 +440,15 @@ class Recorder:
         if self._writer is not None:
             self.writer_problem = self._finish_writer()
         if self._writer is None or self.writer_problem is not None:
+            for table in self._tables:
+                written, _ = rebuild_csv(table.header)
+                expected = table.header.kept(table.rows)
+                if written != expected:  # the spool is kept (close raises)
+                    raise SpoolError(f"{table.header.csv_path}: {written} rows written, "
+                                     f"{expected} expected, from {table.header.spool_path}")
             if self.writer_problem is not None:
                 print(f"recorder: {self.writer_problem}; CSV files rebuilt from the spools",
                       file=sys.stderr)
-            for table in self._tables:
-                rebuild_csv(table.header)
         if "parquet" in self.formats:
             for table in self._tables:
                 write_parquet(table.header)
@@ -496,6 +518,44 @@ class Recorder:
         return None
 
 
+def hold_recording_lock(spool: Path) -> int | None:
+    """Take the recording lock of `spool`: an exclusive `flock` on a descriptor of its
+    own (not inherited by child processes), held until it is closed or the process ends.
+
+    Returns:
+        the descriptor, or None when the file system has no locks (the run goes on;
+        `recover` then cannot tell it is live).
+    """
+    try:
+        fd = os.open(spool, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return None
+    return fd
+
+
+def is_being_recorded(spool: Path) -> bool:
+    """Whether a live recorder holds the recording lock of `spool` (False: no spool,
+    a dead recorder's spool, or a file system without locks)."""
+    try:
+        fd = os.open(spool, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)  # also drops the shared lock, if taken
+    return False
+
+
 def _read_while_progressing(process: subprocess.Popen[bytes], outputs: list[Path]) -> bytes | None:
     """The process's stdout, read to its end (the writer exits after its report), while it
     keeps growing `outputs`; after a stall it is killed (None).
@@ -545,7 +605,10 @@ def read_signals(path: str | Path) -> tuple[list[str], np.ndarray]:
     Returns:
         (column names, 2-D float64 array with one row per recorded tick).
     """
-    with open(path, encoding="ascii") as handle:
-        names = handle.readline().rstrip("\n").split(",")
+    with open(path, encoding="utf-8") as handle:
+        try:
+            names = parse_header_line(read_header_record(handle))
+        except ValueError as exc:
+            raise ValueError(f"{path}:1: {exc}") from None
         rows = [[float(v) for v in line.rstrip("\n").split(",")] for line in handle if line.strip()]
     return names, np.array(rows, dtype=np.float64).reshape(len(rows), len(names))

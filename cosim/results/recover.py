@@ -7,6 +7,12 @@ asked for one: `record.format`; decimated as the run asked, `record.every`)
 and rewrites the manifest: status
 "recovered", the ticks on disk and the time of the last one, so that the
 folder no longer claims to be "running".
+
+A run that is still recording holds the recording lock of its signals spool
+(`cosim.results.recorder.hold_recording_lock`): `recover` refuses its folder,
+as rebuilding and removing a live spool would end the run and cut its CSV short.
+A rebuild that reads fewer rows than a spool's count is an error that keeps
+every spool.
 """
 
 from __future__ import annotations
@@ -20,23 +26,32 @@ from cosim.errors import UserError
 from cosim.results.csv_writer import (HEADER_SUFFIX, SPOOL_SUFFIX, SpoolError, SpoolHeader,
                                       read_header, rebuild_csv)
 from cosim.results.parquet import pyarrow_missing, write_parquet
-from cosim.results.recorder import ARRAYS_DIR, SIGNALS_FILE, RunFolderError, write_json
+from cosim.results.recorder import (ARRAYS_DIR, SIGNALS_FILE, RunFolderError, is_being_recorded,
+                                    write_json)
 
 MANIFEST_FILE = "manifest.json"
 
 
-def recover(run_dir: str | Path, keep_spool: bool = False) -> list[tuple[Path, int, int]]:
+class NoSpoolError(UserError):
+    """The run folder holds no spool: nothing was recorded, or it was already converted."""
+
+
+def recover(run_dir: str | Path, keep_spool: bool = False,
+            check_live: bool = True) -> list[tuple[Path, int, int]]:
     """Rebuild a run folder's CSV files from its spools and mark its manifest recovered.
 
     Args:
         run_dir: the run folder.
         keep_spool: keep the spools after the CSV files are written.
+        check_live: refuse a folder whose run is still recording (False: the caller
+            saw the master die, e.g. its supervisor).
     Returns:
         (CSV path, rows written, bytes of a partial last row ignored) per table, then
         (Parquet path, rows, 0) per table when the run asked for Parquet.
     Raises:
-        UserError when the folder holds no spool, a spool cannot be read, or the
-        folder cannot be written (RunFolderError: free space, then recover again).
+        UserError when the folder holds no spool, a spool cannot be read, its run is
+        still recording, or the folder cannot be written (RunFolderError: free space,
+        then recover again).
     """
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
@@ -44,10 +59,12 @@ def recover(run_dir: str | Path, keep_spool: bool = False) -> list[tuple[Path, i
     paths = sorted(run_dir.glob(f"*{HEADER_SUFFIX}")) + sorted(
         (run_dir / ARRAYS_DIR).glob(f"*{HEADER_SUFFIX}"))
     if not paths:
-        raise UserError(f"{run_dir}: no recording spool (*{SPOOL_SUFFIX} with its "
+        raise NoSpoolError(f"{run_dir}: no recording spool (*{SPOOL_SUFFIX} with its "
                         f"*{HEADER_SUFFIX} header) to recover from")
     try:
         headers = [read_header(p) for p in paths]
+        if check_live:
+            _refuse_live(run_dir, headers)
         done = [(h.csv_path, *rebuild_csv(h)) for h in headers]
         parquet, not_written = _write_parquet(headers, [rows for _, rows, _ in done])
         signals = next((h for h in headers if h.csv == SIGNALS_FILE), None)
@@ -64,6 +81,15 @@ def recover(run_dir: str | Path, keep_spool: bool = False) -> list[tuple[Path, i
             header.spool_path.unlink(missing_ok=True)
             header.path.unlink(missing_ok=True)
     return done
+
+
+def _refuse_live(run_dir: Path, headers: list[SpoolHeader]) -> None:
+    """A UserError when a live recorder holds the lock of one of the spools."""
+    for header in headers:
+        if is_being_recorded(header.spool_path):
+            pid = "" if header.pid is None else f" (pid {header.pid})"
+            raise UserError(f"run folder {run_dir} is still being written by a running "
+                            f"run{pid}; recover it after it ends")
 
 
 def _write_parquet(headers: list[SpoolHeader], rows: list[int]

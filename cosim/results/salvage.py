@@ -22,7 +22,7 @@ from typing import Any
 from cosim.engine.crumb import CALL_BUILD, CALL_START, CALL_STOP, CALLS
 from cosim.errors import ComponentFailure, UserError
 from cosim.results.recorder import SIGNALS_FILE, read_signals, write_json
-from cosim.results.recover import recover
+from cosim.results.recover import NoSpoolError, recover
 
 
 def complete_run_folder(folder: Path | None, verdict: dict[str, Any]) -> str:
@@ -41,10 +41,13 @@ def complete_run_folder(folder: Path | None, verdict: dict[str, Any]) -> str:
     if folder is None:
         raise ValueError("no run folder")
     manifest = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
+    not_rebuilt = None
     try:
-        recover(folder)
-    except UserError:
-        pass  # no spool: nothing recorded yet, or already converted
+        recover(folder, check_live=False)  # the master is dead: no one else records here
+    except NoSpoolError:
+        pass  # nothing recorded yet, or already converted
+    except UserError as exc:  # the spools are kept: said in the error, for cosim recover
+        not_rebuilt = f"; the CSV files were not rebuilt: {exc} (spools kept for cosim recover)"
     recovered = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
     if "recording" in recovered:  # which files recover wrote (csv, parquet)
         manifest["recording"] = recovered["recording"]
@@ -53,7 +56,7 @@ def complete_run_folder(folder: Path | None, verdict: dict[str, Any]) -> str:
     tick = float(scenario.get("tick", 0.0))
     last = _last_tick(folder / SIGNALS_FILE, t0, tick)
     cause = _cause(verdict, list(manifest.get("step_order", [])), last, t0, tick)
-    message = _message(cause)
+    message = _message(cause) + (not_rebuilt or "")
     manifest.update({"status": "failed", "error": message, "cause": cause,
                      "ticks": max(last, 0), "sim_time_s": max(last, 0) * tick,
                      "failed_utc": datetime.datetime.now(datetime.timezone.utc)

@@ -476,8 +476,8 @@ def test_recover_names_the_file_and_field_of_a_bad_spool(tmp_path):
         recover(tmp_path / "missing")
     header = tmp_path / "signals.f64.json"
     header.write_text(json.dumps({"format": "cosim-spool-f64", "csv": "signals.csv",
-                                  "columns": ["time", "a,b"], "byteorder": "little"}))
-    with pytest.raises(UserError, match=r"signals\.f64\.json: columns: .*'a,b'"):
+                                  "columns": ["time", ""], "byteorder": "little"}))
+    with pytest.raises(UserError, match=r"signals\.f64\.json: columns: .*\['time', ''\]"):
         recover(tmp_path)
     header.write_text(json.dumps({"format": "cosim-spool-f64", "csv": "signals.csv",
                                   "columns": ["time", "a"], "byteorder": "little"}))
