@@ -135,6 +135,7 @@ class FmuComponent(FmuInstance):
             if code:
                 self._shim_problem(tick, t, code)
             self._t_prev = t
+            self._tick = tick
             return self._out_floats.tolist()
         except (ComponentFailure, StopRequested):
             raise
@@ -148,6 +149,7 @@ class FmuComponent(FmuInstance):
         if status > 1 or (self.fmi3 and self._terminate.value):
             self._step_problem(tick, t, status)
         self._t_prev = t
+        self._tick = tick
         return self._get_outputs()
 
     def _shim_problem(self, tick: int, t: float, code: int) -> None:
@@ -172,6 +174,7 @@ class FmuComponent(FmuInstance):
             raise FMICallException(self._do_step_name, status)
         outputs = self._get_outputs()  # allowed in FMI 2's stepFailed state and FMI 3
         self._t_prev = t
+        self._tick = tick
         raise self._stop_request(tick, t, outputs)
 
     def stop(self) -> dict[str, float]:

@@ -20,11 +20,13 @@ from __future__ import annotations
 import ctypes
 import shutil
 import sys
+import tempfile
 from collections import deque
 from pathlib import Path
 from typing import Any
 
 import fmpy
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 from fmpy.fmi3 import FMU3Model, FMU3Slave
@@ -113,6 +115,8 @@ class FmuInstance:
     interface: Any
     _model_exchange = False  # which interface of the FMU `_instantiate` instantiates
     use_shim = True  # the stepping shim's per-instance FMI 2 logger (and step) when it builds
+    unzip_dir: str | None = None  # an empty folder to extract into (an isolated FMU's process
+    # sets it: its parent was told the folder, to remove it if this process dies); None: a new one
 
     def __init__(self, log_file: str | Path | None) -> None:
         sink = open(log_file, "a", encoding="utf-8") if log_file is not None else None
@@ -122,6 +126,7 @@ class FmuInstance:
         self._shim: Any = None  # the stepping shim library, None: fmpy's per-call path and proxy
         self._unzipped: str | None = None
         self._t_prev = 0.0
+        self._tick = 0  # the last tick completed (0: after the start), named by a stop's failure
         self._initialized = False
         self._fatal = False  # after Fatal, FMI allows no call at all
 
@@ -129,21 +134,29 @@ class FmuInstance:
         self._shim = stepper.library() if self.use_shim else None
         self._unzipped, self._fmu, self._callbacks = instantiate(
             self.path, self.interface, self.name, self.log, self._model_exchange,
-            logging_on=True, shim=self._shim)
+            logging_on=True, shim=self._shim, unzip_dir=self.unzip_dir)
 
     def _release(self) -> None:
         """Terminate (when initialized), free the instance, remove its files, close the log.
 
         After a Fatal status nothing is called: the instance and its library
-        stay as they are until the process ends.
+        stay as they are until the process ends. A failure names the last tick
+        completed and its time (the stop comes after it).
         """
+        failure: ComponentFailure | None = None
         try:
-            if self._fmu is not None and not self._fatal:
-                if self._initialized:
+            if self._fmu is not None and not self._fatal and self._initialized:
+                try:
                     self._fmu.terminate()
+                except Exception as exc:  # after Error still freeInstance, after Fatal nothing
+                    failure = self._failure(self._tick, self._t_prev, exc, " in its stop after "
+                                            f"tick {self._tick}")
+                    failure.__cause__ = exc
+            if self._fmu is not None and not self._fatal:
                 self._fmu.freeInstance()
         except Exception as exc:
-            raise self._failure(None, self._t_prev, exc) from exc
+            raise failure or self._failure(self._tick, self._t_prev, exc, " in its stop after "
+                                           f"tick {self._tick}") from exc
         finally:
             if self._fatal and self._fmu is not None:
                 _keep_alive.append((self._fmu, self._callbacks))
@@ -153,17 +166,21 @@ class FmuInstance:
             if self._unzipped:
                 shutil.rmtree(self._unzipped, ignore_errors=True)
                 self._unzipped = None
+        if failure is not None:
+            raise failure
 
-    def _failure(self, tick: int | None, t: float, exc: Exception) -> ComponentFailure:
+    def _failure(self, tick: int | None, t: float, exc: Exception,
+                 where: str = "") -> ComponentFailure:
         """The ComponentFailure for an FMI error, quoting the FMU's log; after it only
-        freeInstance is called (nothing at all after Fatal)."""
+        freeInstance is called (nothing at all after Fatal). `where`: words after the
+        failed call (" in its stop after tick 100")."""
         self._initialized = False
         status = getattr(exc, "status", None)
         if status == FATAL:
             self._fatal = True
         details = {"kind": "fmi_status", "status": _STATUS.get(status, status)} if status else {}
-        return ComponentFailure(self.name, tick, t, f"{exc} (FMU {self.path.name}: "
-                                f"{self.log.text()})", details)
+        return ComponentFailure(self.name, tick, t, f"{_call_text(exc, where)} (FMU "
+                                f"{self.path.name}: {self.log.text()})", details)
 
     def _stop_request(self, tick: int, t: float, outputs: dict[str, Value],
                       where: str = "") -> StopRequested:
@@ -174,6 +191,19 @@ class FmuInstance:
 
 
 _keep_alive: list[Any] = []  # FMU instances (and their callbacks) after a Fatal status
+
+
+def _call_text(exc: Exception, where: str = "") -> str:
+    """What failed (fmpy's words, except that it calls Pending, status 5, an "illegal return
+    code"), then `where` before the final period."""
+    if isinstance(exc, FMICallException) and exc.status == 5:
+        text = (f"{exc.function} failed with status 5 (pending: this host does not run "
+                f"asynchronous steps).")
+    else:
+        text = str(exc)
+    if not where:
+        return text
+    return f"{text[:-1]}{where}." if text.endswith(".") else f"{text}{where}"
 
 
 def _fmi2_callbacks(log: FmuLog, shim: Any) -> fmi2CallbackFunctions:
@@ -198,7 +228,8 @@ def _fmi2_callbacks(log: FmuLog, shim: Any) -> fmi2CallbackFunctions:
 
 
 def instantiate(path: Path, interface: Any, name: str, log: Any, model_exchange: bool,
-                logging_on: bool, shim: Any = None) -> tuple[str, Any, Any]:
+                logging_on: bool, shim: Any = None,
+                unzip_dir: str | None = None) -> tuple[str, Any, Any]:
     """Extract an FMU and instantiate it through fmpy, its messages going to `log`.
 
     Args:
@@ -209,11 +240,26 @@ def instantiate(path: Path, interface: Any, name: str, log: Any, model_exchange:
         model_exchange: instantiate the Model Exchange interface (else co-simulation).
         logging_on: ask the FMU to log its debug categories too.
         shim: the stepping shim library, whose FMI 2 logger is per instance; None: fmpy's proxy.
+        unzip_dir: an empty folder to extract into; None: a new temporary folder.
     Returns:
         (extraction folder, the fmpy FMU object, the FMI 2 callbacks to keep alive or None).
+        When anything fails (the archive, loading the library, a missing function,
+        instantiate returning NULL), the folder is removed before the exception goes on.
     """
+    unzipped = unzip_dir if unzip_dir is not None else tempfile.mkdtemp()
+    try:
+        return _instantiate_in(unzipped, path, interface, name, log, model_exchange,
+                               logging_on, shim)
+    except BaseException:
+        shutil.rmtree(unzipped, ignore_errors=True)
+        raise
+
+
+def _instantiate_in(unzipped: str, path: Path, interface: Any, name: str, log: Any,
+                    model_exchange: bool, logging_on: bool, shim: Any) -> tuple[str, Any, Any]:
+    """`instantiate` into the folder `unzipped`."""
     md = interface.model_description
-    unzipped = fmpy.extract(str(path))
+    unzipped = str(fmpy.extract(str(path), unzipdir=unzipped))
     description = md.modelExchange if model_exchange else md.coSimulation
     kwargs = dict(guid=md.guid, unzipDirectory=unzipped,
                   modelIdentifier=description.modelIdentifier, instanceName=name)

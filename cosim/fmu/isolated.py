@@ -8,8 +8,12 @@ FMU through the same host as the master does in-process (`FmuComponent`, or
 A crash of the FMU (segfault, abort, exit) kills only that process: the
 master reads the end of the pipe, takes its exit status and fails the run
 with the usual one-line message; a call that does not return within the
-deadline gets the process killed and the same kind of message. The process dies with the master (PR_SET_PDEATHSIG) and ignores
-Ctrl-C (the master decides).
+deadline (its start and stop included) gets the process killed at once and
+the same kind of message; a failure of its stop names the last tick, as in
+the master's process. The process dies with the master (PR_SET_PDEATHSIG)
+and ignores Ctrl-C (the master decides). Before it extracts the FMU (in its
+start) it tells the master the folder, so that the master removes it
+whatever becomes of the process.
 
 Why pipes and not Zenoh: the process is always local and private to this
 master (no key space, no credentials, nothing on the network); pipes work
@@ -18,8 +22,9 @@ under `--transport inproc` too; and one exchange costs a pipe round trip
 
 Frames, both ways: 4-byte length, 1-byte kind, payload. Master to process:
 b"C" config (JSON, once), b"I" t0 + inputs, b"S" tick, t + inputs, b"Q" stop.
-Process to master: b"R" ready, b"O" outputs, b"T" outputs + reason (the FMU
-asked to terminate), b"M" metrics (JSON), b"E" failure (JSON: tick, time, cause).
+Process to master: b"R" ready, b"D" the folder it extracts the FMU into (before
+the reply to b"I"), b"O" outputs, b"T" outputs + reason (the FMU asked to
+terminate), b"M" metrics (JSON), b"E" failure (JSON: tick, time, cause, details).
 """
 
 from __future__ import annotations
@@ -28,10 +33,12 @@ import ctypes
 import json
 import os
 import select
+import shutil
 import signal
 import struct
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -45,7 +52,7 @@ from cosim.errors import ComponentFailure, StopRequested
 LENGTH = struct.Struct("=I")
 STEP = struct.Struct("=qd")
 READY_TIMEOUT_S = 60.0  # process start-up (imports, unzipping): not an FMI call
-STOP_WAIT_S = 2.0
+STOP_WAIT_S = 1.0  # for the process to exit after its stop replied (else it is killed)
 POLL_SLICE_MS = 100
 
 
@@ -81,6 +88,8 @@ class IsolatedFmu:
         self._step_frame = struct.Struct(f"=Icqd{self._in.count}d")
         self._ready = False
         self._busy = False  # a request is out and its reply not read
+        self._tick, self._t = 0, 0.0  # the last tick completed, and its time (named by a stop)
+        self._folder: str | None = None  # where the process extracts the FMU (it said so)
         config = {"name": name, "path": str(path), "variables": dict(variables),
                   "parameters": {k: float(v) for k, v in parameters.items()},
                   "period_ticks": self.period_ticks,
@@ -106,7 +115,7 @@ class IsolatedFmu:
         """Wait for the process to have loaded the FMU (imports, unzipping: not an FMI
         call, so not under the call deadline; the run does it before tick 0's calls)."""
         if not self._ready:
-            self._receive("R", None, 0.0, READY_TIMEOUT_S)
+            self._receive("start-up", None, 0.0, READY_TIMEOUT_S)
             self._ready = True
 
     def start(self, t0: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
@@ -114,28 +123,48 @@ class IsolatedFmu:
         there at t0."""
         self.wait_ready()
         values = self._in.flatten(inputs)
-        _send(self._tx, b"I", struct.pack(f"=d{len(values)}d", t0, *values))
+        self._t = t0
+        self._request("start", None, t0, b"I", struct.pack(f"=d{len(values)}d", t0, *values))
         return self._outputs(self._receive("start", None, t0, self.deadline_s), None, t0)
 
     def step(self, tick: int, t: float, inputs: Mapping[str, Value]) -> dict[str, Value]:
         """One doStep in the process: a request frame, a reply frame."""
         frame = self._step_frame
-        os.write(self._tx, frame.pack(frame.size - 4, b"S", tick, t,
-                                      *self._in.flatten(inputs)))
+        try:
+            os.write(self._tx, frame.pack(frame.size - 4, b"S", tick, t,
+                                          *self._in.flatten(inputs)))
+        except BrokenPipeError:
+            raise self._died("step", tick, t) from None
         self._busy = True
-        return self._outputs(self._receive("step", tick, t, self.deadline_s), tick, t)
+        outputs = self._outputs(self._receive("step", tick, t, self.deadline_s), tick, t)
+        self._tick, self._t = tick, t
+        return outputs
 
     def stop(self) -> dict[str, float]:
-        """Stop the FMU in the process and let it exit (killed if it is stuck or busy)."""
+        """Stop the FMU in the process (under the call deadline) and let it exit; killed at
+        once if it is stuck, busy or not ready. A failure names the last tick completed."""
         metrics: dict[str, float] = {}
+        replied = False
         try:
             if self.process.poll() is None and self._ready and not self._busy:
-                _send(self._tx, b"Q", b"")
-                kind, payload = self._receive("stop", None, 0.0, STOP_WAIT_S, raw=True)
+                self._request("stop", self._tick, self._t, b"Q", b"")
+                kind, payload = self._receive("stop", self._tick, self._t, self.deadline_s,
+                                              raw=True)
+                replied = True
                 metrics = json.loads(payload) if kind == b"M" else {}
         finally:
-            self._end_process()
+            self._end_process(STOP_WAIT_S if replied else 0.0)
         return metrics
+
+    def _request(self, call: str, tick: int | None, t: float, kind: bytes,
+                 payload: bytes) -> None:
+        """Send a request frame (its reply is then due); a process already gone raises
+        the ComponentFailure of its death."""
+        try:
+            _send(self._tx, kind, payload)
+        except BrokenPipeError:
+            raise self._died(call, tick, t) from None
+        self._busy = True
 
     def _outputs(self, reply: tuple[bytes, bytes], tick: int | None, t: float) -> dict[str, Value]:
         kind, payload = reply
@@ -147,15 +176,23 @@ class IsolatedFmu:
 
     def _receive(self, call: str, tick: int | None, t: float, timeout_s: float,
                  raw: bool = False) -> tuple[bytes, bytes]:
-        """The next frame; a failure, a death or a timeout of the process raises ComponentFailure."""
-        if not self._wait_readable(timeout_s):
-            self._end_process()
-            raise ComponentFailure(self.name, tick, t, f"no return from its {call} within the "
-                                   f"deadline of {timeout_s:g} s (its isolated process was "
-                                   f"ended)", {"kind": "deadline", "deadline_s": timeout_s})
-        frame = _read_frame(self._rx)
-        if frame is None:
-            raise self._died(call, tick, t)
+        """The next frame; a failure, a death or a timeout of the process raises ComponentFailure
+        (the process then killed at once). A b"D" frame (the extraction folder) is noted
+        and the next one read, within the same time."""
+        end = time.monotonic() + timeout_s
+        while True:
+            if not self._wait_readable(max(end - time.monotonic(), 0.0)):
+                self._end_process()
+                raise ComponentFailure(self.name, tick, t, f"no return from its {call} within the "
+                                       f"deadline of {timeout_s:g} s (its isolated process was "
+                                       f"ended){_after(call, tick)}",
+                                       {"kind": "deadline", "deadline_s": timeout_s})
+            frame = _read_frame(self._rx)
+            if frame is None:
+                raise self._died(call, tick, t)
+            if frame[0] != b"D":
+                break
+            self._folder = frame[1].decode()
         self._busy = False
         kind, payload = frame
         if kind == b"E":
@@ -179,27 +216,41 @@ class IsolatedFmu:
         return False
 
     def _died(self, call: str, tick: int | None, t: float) -> ComponentFailure:
-        code = self.process.wait()
-        self._end_process()
+        """The failure of a process whose pipe ended (it died, or closed the pipe: killed)."""
+        self._end_process(STOP_WAIT_S)
+        code = self.process.returncode
+        where = f"in its {call}{_after(call, tick)}"
         if code < 0:
             name = signal.Signals(-code).name
             return ComponentFailure(self.name, tick, t, f"its isolated process was killed by "
-                                    f"{name} in its {call}", {"kind": "signal", "signal": name})
+                                    f"{name} {where}", {"kind": "signal", "signal": name})
         return ComponentFailure(self.name, tick, t, f"its isolated process exited with status "
-                                f"{code} in its {call}", {"kind": "exit", "exit_code": code})
+                                f"{code} {where}", {"kind": "exit", "exit_code": code})
 
-    def _end_process(self) -> None:
-        """Kill the process if it still runs, reap it, close the pipes (safe to call twice)."""
+    def _end_process(self, wait_s: float = 0.0) -> None:
+        """Close the pipe to the process (a process waiting for a request ends), give it
+        `wait_s` to exit, else kill it; reap it, close the other pipe, remove the folder it
+        extracted the FMU into (safe to call twice)."""
+        if self._tx >= 0:
+            os.close(self._tx)
+            self._tx = -1
         if self.process.poll() is None:
             try:
-                self.process.wait(timeout=0 if self._busy else STOP_WAIT_S)
+                self.process.wait(timeout=wait_s)
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait()
-        for fd in (self._tx, self._rx):
-            if fd >= 0:
-                os.close(fd)
-        self._tx = self._rx = -1
+        if self._rx >= 0:
+            os.close(self._rx)
+            self._rx = -1
+        if self._folder is not None:
+            shutil.rmtree(self._folder, ignore_errors=True)
+            self._folder = None
+
+
+def _after(call: str, tick: int | None) -> str:
+    """" after tick N" for a stop (it comes after the last tick completed), else ""."""
+    return f" after tick {tick}" if call == "stop" and tick is not None else ""
 
 
 class _Flat:
@@ -306,8 +357,10 @@ def _loop(fmu: Any, rx: int, tx: int) -> int:
                 out = fmu.step(tick, t, ins.mapping(values))
             elif kind == b"I":
                 t, *values = struct.unpack(f"=d{n_in}d", payload)
+                fmu.unzip_dir = tempfile.mkdtemp()  # the master removes it if this process dies
+                _send(tx, b"D", fmu.unzip_dir.encode())
                 out = fmu.start(t, ins.mapping(values))
-            else:  # b"Q"
+            else:  # b"Q": the reply (metrics or failure), then this process ends
                 _send(tx, b"M", json.dumps(fmu.stop()).encode())
                 return 0
         except StopRequested as request:
@@ -321,6 +374,8 @@ def _loop(fmu: Any, rx: int, tx: int) -> int:
                                         "time": error.time if error else t,
                                         "cause": error.cause if error else repr(exc),
                                         "details": error.details if error else {}}).encode())
+            if kind == b"Q":
+                return 0
             continue
         os.write(tx, reply.pack(reply.size - 4, b"O", *outs.flatten(out)))
     return 0

@@ -127,6 +127,7 @@ class ModelExchangeComponent(FmuInstance):
                 self._solver.reset(self._t_prev)
             self._integrate(tick, t)
             self._t_prev = t
+            self._tick = tick
             return self._get_outputs()
         except (ComponentFailure, StopRequested):
             raise
@@ -192,6 +193,7 @@ class ModelExchangeComponent(FmuInstance):
             raise ComponentFailure(self.name, None, time, "the FMU asked to terminate the "
                                    f"simulation during initialization ({self.log.text()})")
         where = "" if math.isclose(time, t_tick) else f" at t={time:.10g} s"
+        self._t_prev, self._tick = t_tick, tick  # a failing stop names this tick
         raise self._stop_request(tick, t_tick, self._get_outputs(), where)
 
     def _set(self, vrs: list[int], values: list[float]) -> None:

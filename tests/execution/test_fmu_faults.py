@@ -245,3 +245,157 @@ def test_the_readme_quotes_these_messages():
                "stopped by component 'vehicle' at tick 900 (t=9 s): the FMU asked to "
                "terminate the simulation"]
     assert [q for q in quoted if q not in readme] == []
+
+
+# ---- faults outside doStep: tests/fmus/Wayward (hand-written FMI 2.0, `fault` parameter) ----
+
+WAYWARD = """\
+name: wayward
+duration: 0.4
+tick: 0.01
+components:
+  {name}:
+    fmu: {fmu}
+    parameters: {{fault: {fault}}}
+    isolate: {isolate}
+    deadline: 1.0
+sources:
+  ref: {{kind: constant, value: 1.0}}
+connections:
+  - ref.value -> {name}.u
+"""
+TERM_SEGV, TERM_HANG, TERM_ERROR, FREE_SEGV, SETUP_HANG, STEP_PENDING = 1, 2, 3, 4, 5, 6
+LAST_TICK, LAST_T = 40, 0.4  # duration 0.4 s in ticks of 0.01 s
+
+
+@pytest.fixture(scope="module")
+def wayward(tmp_path_factory) -> dict[str, Path]:
+    """tests/fmus/Wayward built for FMI 2.0 ("ok"), and two broken copies: "garbage" (its
+    library is not an ELF file) and "nosym" (a library without the FMI functions)."""
+    import zipfile
+
+    import fmpy
+
+    model, out = REPO_ROOT / "tests" / "fmus" / "Wayward", tmp_path_factory.mktemp("wayward")
+    headers = Path(fmpy.__file__).parent / "c-code"
+    libraries = {"ok": out / "ok.so", "nosym": out / "nosym.so"}
+    subprocess.run(["gcc", "-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Werror",
+                    f"-I{headers}", str(model / "model.c"), "-o", str(libraries["ok"])],
+                   check=True, capture_output=True)
+    (out / "empty.c").write_text("int wayward_nothing(void) { return 0; }\n")
+    subprocess.run(["gcc", "-fPIC", "-shared", str(out / "empty.c"), "-o",
+                    str(libraries["nosym"])], check=True, capture_output=True)
+    fmus = {}
+    for name in ("ok", "nosym", "garbage"):
+        fmus[name] = out / f"{name}" / "Wayward.fmu"
+        fmus[name].parent.mkdir()
+        with zipfile.ZipFile(fmus[name], "w") as archive:
+            archive.write(model / "modelDescription.xml", "modelDescription.xml")
+            so = "binaries/linux64/Wayward.so"
+            if name == "garbage":
+                archive.writestr(so, "not a shared library\n")
+            else:
+                archive.write(libraries[name], so)
+    return fmus
+
+
+def _run_wayward(tmp_path: Path, fmu: Path, fault: int, isolate: bool, name: str = "plant"):
+    """`cosim run` of a Wayward scenario with its own TMPDIR; (result, run folder, processes
+    left, FMU folders left in that TMPDIR)."""
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    text = WAYWARD.format(name=name, fmu=fmu, fault=fault, isolate=str(isolate).lower())
+    previous = os.environ.get("TMPDIR")
+    os.environ["TMPDIR"] = str(temp)  # run_cosim passes os.environ on
+    try:
+        done, out, left = run_cosim(tmp_path, text, "--transport", "inproc")
+    finally:
+        if previous is None:
+            del os.environ["TMPDIR"]
+        else:
+            os.environ["TMPDIR"] = previous
+    extracted = [str(p.parent) for p in temp.rglob("modelDescription.xml")]
+    return done, out, left, extracted
+
+
+def _check_stop_failed(done, out: Path, left: list[str], message: str) -> dict:
+    """A failure in the stop after the last tick: named at that tick, every row kept."""
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith(f"run failed: component 'plant' failed at tick {LAST_TICK} "
+                           f"(t={LAST_T:g} s): ") and message in last, last
+    assert last.endswith(f"after tick {LAST_TICK}") or f"after tick {LAST_TICK}." in last, last
+    assert len(read_signals(out / "signals.csv")[1]) == LAST_TICK + 1
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "failed" and last == f"run failed: {manifest['error']}"
+    assert left == []
+    return manifest
+
+
+STOP_FAULTS = [
+    pytest.param(TERM_SEGV, True, "its isolated process was killed by SIGSEGV in its stop",
+                 id="terminate-segfault-isolated"),
+    pytest.param(FREE_SEGV, True, "its isolated process was killed by SIGSEGV in its stop",
+                 id="freeInstance-segfault-isolated"),
+    pytest.param(TERM_HANG, True, "no return from its stop within the deadline of 1 s (its "
+                 "isolated process was ended)", id="terminate-hang-isolated"),
+    pytest.param(TERM_ERROR, True, "fmi2Terminate failed with status 3 (error) in its stop "
+                 "after tick 40. (FMU Wayward.fmu: [Error/logStatusError] Wayward: injected "
+                 "error in fmi2Terminate at t = 0.4)", id="terminate-error-isolated"),
+    pytest.param(TERM_ERROR, False, "fmi2Terminate failed with status 3 (error) in its stop "
+                 "after tick 40. (FMU Wayward.fmu: [Error/logStatusError] Wayward: injected "
+                 "error in fmi2Terminate at t = 0.4)", id="terminate-error-in-process"),
+]
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("fault, isolate, message", STOP_FAULTS)
+def test_a_failing_stop_is_named_after_the_last_tick(tmp_path, wayward, fault, isolate, message):
+    done, out, left, extracted = _run_wayward(tmp_path, wayward["ok"], fault, isolate)
+    _check_stop_failed(done, out, left, message)  # a hang: the component's deadline of 1 s
+    assert extracted == []  # also the folder of an isolated process that died
+
+
+@pytest.mark.timeout(120)
+def test_an_isolated_start_that_hangs_is_ended_after_the_components_deadline(tmp_path, wayward):
+    """Killed after the component's deadline by IsolatedFmu itself, before the supervisor's
+    backstop (deadline + 2 s) would end the master."""
+    done, out, left, extracted = _run_wayward(tmp_path, wayward["ok"], 0, True, name="inst_hang")
+    assert done.returncode == 1, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last == ("run failed: component 'inst_hang' failed during initialization (t=0 s): "
+                    "no return from its start within the deadline of 1 s (its isolated "
+                    "process was ended)"), last
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "failed" and manifest.get("completed_by") is None
+    assert {k: manifest["cause"][k] for k in ("kind", "deadline_s", "component", "tick")} == {
+        "kind": "deadline", "deadline_s": 1.0, "component": "inst_hang", "tick": None}
+    assert left == [] and extracted == []
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("case, name, message", [
+    ("ok", "inst_null", "Failed to instantiate model"),
+    ("garbage", "plant", "Failed to load shared library"),
+    ("nosym", "plant", "undefined symbol: fmi2"),
+])
+@pytest.mark.parametrize("isolate", [False, True], ids=["in-process", "isolated"])
+def test_an_fmu_that_cannot_be_instantiated_leaves_no_extracted_folder(
+        tmp_path, wayward, case, name, message, isolate):
+    done, out, left, extracted = _run_wayward(tmp_path, wayward[case], 0, isolate, name=name)
+    assert done.returncode == 1, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith(f"run failed: component {name!r} failed during initialization "
+                           f"(t=0 s): ") and message in last, last
+    assert left == [] and extracted == []
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("isolate", [False, True], ids=["in-process", "isolated"])
+def test_a_pending_step_is_named_pending(tmp_path, wayward, isolate):
+    done, out, left, extracted = _run_wayward(tmp_path, wayward["ok"], STEP_PENDING, isolate)
+    _check_failed(done, out, left, {"kind": "fmi_status", "status": "Pending"},
+                  "fmi2DoStep failed with status 5 (pending: this host does not run "
+                  "asynchronous steps)")
+    assert extracted == []
