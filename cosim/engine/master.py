@@ -332,27 +332,30 @@ class Master:
             if not _isfinite(_add_reduce(block)) and not np.isfinite(block).all():
                 raise _diagnose(plan, outputs, k, t)
 
-    def stop_all(self) -> tuple[dict[str, dict[str, float]], list[str]]:
+    def stop_all(self) -> tuple[dict[str, dict[str, float]], list[ComponentFailure]]:
         """Stop every started component (reverse step order), even after a failure.
 
         Returns:
-            (metrics by component, error messages of components whose stop failed).
+            (metrics by component, the failures of components whose stop failed: a
+            host's own ComponentFailure, or one made here at the last tick).
         """
         metrics: dict[str, dict[str, float]] = {}
-        errors: list[str] = []
+        failures: list[ComponentFailure] = []
         started = set(self._started)
+        last = max(self.ticks_done, 0)
         for plan in reversed(self._plans):
             if plan.name not in started:
                 continue
-            self.crumb[0] = crumb_code(plan.index, CALL_STOP, max(self.ticks_done, 0))
+            self.crumb[0] = crumb_code(plan.index, CALL_STOP, last)
             try:
                 metrics[plan.name] = dict(plan.hosted.stop() or {})
             except Exception as exc:  # keep stopping the others
-                errors.append(str(exc) if isinstance(exc, ComponentFailure)
-                              else f"component {plan.name!r}: stop failed: {exc}")
+                failures.append(exc if isinstance(exc, ComponentFailure) else ComponentFailure(
+                    plan.name, last, self.t0 + last * self.tick, f"stop failed: {exc}",
+                    {"kind": "exception", "exception": type(exc).__name__}))
             finally:
                 self.crumb[0] = 0
-        return metrics, errors
+        return metrics, failures
 
 
 def _due_table(plans: Sequence[_Plan], limit: int = 4096) -> list[list[_Plan]] | None:
@@ -429,5 +432,6 @@ def _diagnose(plan: _Plan, outputs: Any, k: int | None, t: float) -> ComponentFa
             return ComponentFailure(plan.name, k, t, f"output {name!r} missing")
         problem = value_problem(outputs[name], size)
         if problem:
-            return ComponentFailure(plan.name, k, t, f"output {name!r} {problem}")
+            return ComponentFailure(plan.name, k, t, f"output {name!r} {problem}",
+                                    {"kind": "bad_output", "output": name, "problem": problem})
     return ComponentFailure(plan.name, k, t, "invalid outputs")  # pragma: no cover

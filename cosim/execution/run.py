@@ -559,14 +559,14 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
             failure = failure if failure is not None else exc
         if bar is not None:
             bar.close()
-        by_component, stop_errors = master.stop_all()
+        by_component, stop_failures = master.stop_all()
         metrics = {f"{c}.{k}": v for c in master.order if c in by_component
                    for k, v in sorted(by_component[c].items())}
         try:
             write_json(out / "metrics.json", metrics)
         except UserError as exc:
             failure = failure if failure is not None else exc
-    errors = ([_failure_text(failure)] if failure is not None else []) + stop_errors
+    errors = ([_failure_text(failure)] if failure is not None else []) + list(map(str, stop_failures))
     ticks = max(master.ticks_done, 0)
     result = RunResult(out, "failed" if errors else "ok", "; ".join(errors) or None, ticks,
                        ticks * scenario.tick, wall,
@@ -575,7 +575,8 @@ def _execute(prepared: PreparedRun, hosted: dict[str, Any], remote: Any, out: Pa
                        clock.marks.get("tick0"), clock.as_dict(), live,
                        _stopped_by(master.stop_request), recorder.full_signals,
                        ended - loop_started[0] if loop_started else None, manifest["lockstep_cpu"])
-    write_json_in_place(out / "manifest.json", finish_manifest(manifest, result, failure))
+    write_json_in_place(out / "manifest.json", finish_manifest(
+        manifest, result, failure if failure is not None else next(iter(stop_failures), None)))
     if options.page is not None:
         options.page.done()
     if failure is not None and not isinstance(failure, (UserError, KeyboardInterrupt)):

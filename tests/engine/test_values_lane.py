@@ -151,6 +151,8 @@ def test_a_non_finite_value_fails_naming_output_tick_and_value(bad):
         _run(Lagged(bad=bad, bad_at=7), trace=False)
     message = str(caught.value)
     assert "'plant'" in message and "tick 7" in message and f"output 'z' is non-finite: {bad!r}" in message
+    assert caught.value.details == {"kind": "bad_output", "output": "z",
+                                    "problem": f"is non-finite: {bad!r}"}  # the manifest's cause
 
 
 def test_finite_values_whose_sum_overflows_pass():

@@ -329,6 +329,8 @@ def _check_stop_failed(done, out: Path, left: list[str], message: str) -> dict:
     assert len(read_signals(out / "signals.csv")[1]) == LAST_TICK + 1
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["status"] == "failed" and last == f"run failed: {manifest['error']}"
+    assert (manifest["cause"]["component"], manifest["cause"]["tick"],
+            manifest["cause"]["time"]) == ("plant", LAST_TICK, LAST_T)
     assert left == []
     return manifest
 
