@@ -176,6 +176,7 @@ def run_scenario(scenario: Any, out_dir: str | Path, transport: str = "inproc",
         try:
             if page is not None:
                 page.announce(out)
+                _temporary_folder_of_the_run(page, stack)
             if on_folder is not None:
                 on_folder(Path(out_dir))  # as the user gave it; the run uses it absolute
             remote = None
@@ -250,6 +251,21 @@ def check_out_folder(out: str | Path, force: bool = False, option: str = "--out"
         raise UserError(f"{option} {out}: the folder is not empty and is not a run folder (no "
                         f"manifest.json); --force replaces only an earlier run's folder")
     return folder
+
+
+def _temporary_folder_of_the_run(page: Any, stack: contextlib.ExitStack) -> None:
+    """Under a supervisor, the temporary files this process makes during the run (the FMUs'
+    extractions, the Zenoh credentials' folder) go into one folder noted on the
+    supervisor's page, which removes it if the master dies (in an FMU, most likely) and
+    they would be left behind; `stack` removes it at the run's end."""
+    import shutil
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix=supervisor.SCRATCH_PREFIX))
+    stack.callback(shutil.rmtree, folder, ignore_errors=True)
+    if page.note_scratch(folder):
+        previous, tempfile.tempdir = tempfile.tempdir, str(folder)
+        stack.callback(setattr, tempfile, "tempdir", previous)
 
 
 def _make_run_folder(out: Path, replace: bool) -> Path:

@@ -28,8 +28,9 @@ Every `POLL_S` and on every signal the supervisor reads the breadcrumb:
   not return within `INTERRUPT_GRACE_S` (native code ignores signals), it is
   killed and the run folder completed as interrupted.
 
-Whichever way the master ends, the supervisor then ends what it left running
-before exiting: the processes of the master's process group and any orphan
+Whichever way the master ends, the supervisor then removes the master's
+temporary folder of the run (FMU extractions, Zenoh credentials) and ends what
+it left running before exiting: the processes of the master's process group and any orphan
 it adopted as the master's subreaper (a component process whose start a
 Ctrl-C cut short has no handle in the master; the CSV writer has a session of
 its own). Otherwise it exits with the master's status. Standard library only (cosim.startup_gc
@@ -52,9 +53,10 @@ from typing import Any
 from cosim import startup_gc
 
 PAGE_BYTES = 8192
-CRUMB, PHASE, FOLDER_LEN, WRITER_PID, BUILD_DEADLINE_MS, BUILD_NAME_LEN = range(6)  # int64 words
+CRUMB, PHASE, FOLDER_LEN, WRITER_PID, BUILD_DEADLINE_MS, BUILD_NAME_LEN, SCRATCH_LEN = range(7)
 FOLDER_AT = 64  # the run folder's path, UTF-8, from this byte up to BUILD_NAME_AT
-BUILD_NAME_AT = 4096  # the name of the component under construction, UTF-8
+BUILD_NAME_AT = 4096  # the name of the component under construction, UTF-8, up to SCRATCH_AT
+SCRATCH_AT = 5120  # the master's temporary folder for the run, UTF-8
 STARTING, RUNNING, DONE = 0, 1, 2  # phases: before the folder, folder announced, final manifest
 POLL_S = 0.05
 INTERRUPT_GRACE_S = 0.5
@@ -62,6 +64,7 @@ REMOTE_MARGIN_S = 2.0  # beyond a proxied component's own deadline
 LEFTOVER_GRACE_S = 1.0
 REAP_WAIT_S = 1.0  # after SIGKILL, for the kernel to end what was killed
 PR_SET_CHILD_SUBREAPER = 36  # linux/prctl.h
+SCRATCH_PREFIX = "cosim-run-"  # the only folders _remove_scratch removes
 FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
@@ -90,7 +93,7 @@ class ControlPage:
         constructed in the master's process: a call that must end within `deadline_s`."""
         from cosim.engine.crumb import CALL_BUILD, crumb_code
 
-        data = name.encode("utf-8")[:PAGE_BYTES - BUILD_NAME_AT]
+        data = name.encode("utf-8")[:SCRATCH_AT - BUILD_NAME_AT]
         self.map[BUILD_NAME_AT:BUILD_NAME_AT + len(data)] = data
         self.words[BUILD_NAME_LEN] = len(data)
         self.words[BUILD_DEADLINE_MS] = max(1, round(deadline_s * 1000.0))
@@ -104,6 +107,22 @@ class ControlPage:
         """The component whose constructor the master entered last."""
         size = self.words[BUILD_NAME_LEN]
         return self.map[BUILD_NAME_AT:BUILD_NAME_AT + size].decode("utf-8", "replace")
+
+    def note_scratch(self, folder: Path) -> bool:
+        """`folder` holds the master's temporary files of the run (FMU extractions, Zenoh
+        credentials): the supervisor removes it once the master has ended, however it
+        ended. False (nothing noted) for a path too long."""
+        data = str(Path(folder).resolve()).encode("utf-8")
+        if len(data) > PAGE_BYTES - SCRATCH_AT:
+            return False
+        self.map[SCRATCH_AT:SCRATCH_AT + len(data)] = data
+        self.words[SCRATCH_LEN] = len(data)
+        return True
+
+    def scratch(self) -> Path | None:
+        """The noted scratch folder, or None."""
+        size = self.words[SCRATCH_LEN]
+        return Path(self.map[SCRATCH_AT:SCRATCH_AT + size].decode("utf-8")) if size else None
 
     def note_writer(self, pid: int) -> None:
         """The CSV writer process started (ended by the supervisor if the master dies)."""
@@ -148,6 +167,7 @@ def fork_supervisor() -> int | None:
         return Supervisor(pid, page, subreaper).run()
     finally:
         _end_leftovers(pid, subreaper)
+        _remove_scratch(page)
         for signo in FORWARDED:  # the command only exits now: a late Ctrl-C changes nothing
             signal.signal(signo, signal.SIG_IGN)
         signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
@@ -377,6 +397,15 @@ def _reap_children(master: int = -1) -> tuple[bool, int | None]:
             return True, status
         if pid == master:
             status = code
+
+
+def _remove_scratch(page: ControlPage) -> None:
+    """Remove the master's temporary folder of the run (what a crashed or killed master left)."""
+    folder = page.scratch()
+    if folder is not None and folder.name.startswith(SCRATCH_PREFIX):
+        import shutil
+
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def _children() -> list[int]:

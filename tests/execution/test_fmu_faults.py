@@ -172,14 +172,18 @@ FAILURES = (_matrix("Faulty", (SEGFAULT, ABORT, EXIT, HANG, FATAL, ERROR), ("inp
 @pytest.mark.timeout(120)
 @pytest.mark.parametrize("model, version, mode, isolate, transport", FAILURES)
 def test_a_faulty_plant_fails_the_run_with_every_completed_tick(
-        tmp_path, faulty_fmus, model, version, mode, isolate, transport):
+        tmp_path, faulty_fmus, model, version, mode, isolate, transport, monkeypatch):
     text = SCENARIO.format(fmu=faulty_fmus[model, version], mode=mode,
                            isolate=str(isolate).lower())
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    monkeypatch.setenv("TMPDIR", str(temp))  # where the FMU is extracted
     done, out, left = run_cosim(tmp_path, text, "--transport", transport)
     manifest = _check_failed(done, out, left, CAUSES[mode],
                              _message(mode, isolate, _fatal_call(model, version)))
     assert manifest.get("completed_by") == ("supervisor" if not isolate and mode in SUPERVISED
                                             else None)
+    assert list(temp.iterdir()) == []  # the FMU's files too, even from a master that died
 
 
 @pytest.mark.timeout(120)
