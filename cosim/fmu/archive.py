@@ -3,7 +3,9 @@
 `check_archive` holds the .fmu file against what the run will need of it:
 every zip entry passes its CRC check, the model description's GUID (FMI 3
 instantiationToken) is well formed and, when the binary carries one, the
-same as the binary's, and there is a binary for this platform. A source-only
+same as the binary's, and there is a binary for this platform, a shared library
+for this machine that exports every FMI function fmpy binds for the interface
+(`cosim.fmu.elf`, on Linux; read, not loaded). A source-only
 FMU (C sources, no binary for this platform) is compiled once into a cached
 copy, as fmpy can (`fmpy.build`, CMake and a C compiler); `check_archive`
 then returns that copy's path, which the run loads instead.
@@ -67,7 +69,10 @@ def _checked_names(path: Path, interface: Any, binary: str) -> list[str]:
         with zipfile.ZipFile(path) as archive:
             _check_crc(archive, path)
             names = archive.namelist()
-            _check_guid(interface, path, archive.read(binary) if binary in names else b"")
+            library = archive.read(binary) if binary in names else b""
+            _check_guid(interface, path, library)
+            if library:
+                _check_library(interface, path, binary, library)
         if len(_passed) >= ARCHIVES_KEPT:
             _passed.pop(next(iter(_passed)))  # the oldest
         _passed[key] = tuple(names)
@@ -97,6 +102,42 @@ def _check_guid(interface: Any, path: Path, binary: bytes) -> None:
         raise FmuInterfaceError(f"{path}: {what} mismatch: modelDescription.xml says {guid!r}, "
                                 f"the binary {_binary_name(interface)} holds {held} (the XML "
                                 "and the binary come from different exports)")
+
+
+def _check_library(interface: Any, path: Path, binary: str, library: bytes) -> None:
+    """The binary is a shared library for this machine exporting every function fmpy
+    binds when it loads the FMU for this interface (Linux; elsewhere nothing is checked)."""
+    import fmpy
+
+    from cosim.fmu.elf import NotASharedLibrary, exported_names
+
+    if fmpy.system != "linux":
+        return
+    try:
+        exported = exported_names(library)
+    except NotASharedLibrary as exc:
+        raise FmuInterfaceError(f"{path}: {binary}: {exc}") from None
+    if exported is None:
+        return  # no dynamic symbol table to read: loading it will tell
+    missing = sorted(set(bound_functions(interface)) - exported)
+    if missing:
+        listed = ", ".join(missing[:6]) + (f" and {len(missing) - 6} more" if len(missing) > 6 else "")
+        raise FmuInterfaceError(f"{path}: {binary} does not export {listed}, which every FMI "
+                                f"{interface.fmi_version} {interface.fmi_type} FMU must")
+
+
+def bound_functions(interface: Any) -> list[str]:
+    """The FMI functions fmpy binds when it loads an FMU for this interface (all those of
+    its class: the standard's list for the version and interface)."""
+    if interface.fmi_version == "2.0":
+        from fmpy.fmi2 import FMU2Model, FMU2Slave
+
+        cls, prefix = (FMU2Model if interface.fmi_type == "ModelExchange" else FMU2Slave), "fmi2"
+    else:
+        from fmpy.fmi3 import FMU3Model, FMU3Slave
+
+        cls, prefix = (FMU3Model if interface.fmi_type == "ModelExchange" else FMU3Slave), "fmi3"
+    return [name for name in dir(cls) if name.startswith(prefix)]
 
 
 def _binary_name(interface: Any) -> str:

@@ -18,6 +18,7 @@ isolated host runs either of them in its own process):
 from __future__ import annotations
 
 import ctypes
+import os
 import shutil
 import sys
 import tempfile
@@ -247,10 +248,14 @@ def instantiate(path: Path, interface: Any, name: str, log: Any, model_exchange:
         instantiate returning NULL), the folder is removed before the exception goes on.
     """
     unzipped = unzip_dir if unzip_dir is not None else tempfile.mkdtemp()
+    working_dir = os.getcwd()
     try:
         return _instantiate_in(unzipped, path, interface, name, log, model_exchange,
                                logging_on, shim)
     except BaseException:
+        # fmpy changes into the library's folder to load it and stays there when the load
+        # fails: this process would go on in the folder removed below
+        os.chdir(working_dir)
         shutil.rmtree(unzipped, ignore_errors=True)
         raise
 

@@ -381,20 +381,48 @@ def test_an_isolated_start_that_hangs_is_ended_after_the_components_deadline(tmp
 
 
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("case, name, message", [
-    ("ok", "inst_null", "Failed to instantiate model"),
-    ("garbage", "plant", "Failed to load shared library"),
-    ("nosym", "plant", "undefined symbol: fmi2"),
-])
 @pytest.mark.parametrize("isolate", [False, True], ids=["in-process", "isolated"])
-def test_an_fmu_that_cannot_be_instantiated_leaves_no_extracted_folder(
-        tmp_path, wayward, case, name, message, isolate):
-    done, out, left, extracted = _run_wayward(tmp_path, wayward[case], 0, isolate, name=name)
+def test_an_fmu_that_cannot_be_instantiated_leaves_no_extracted_folder(tmp_path, wayward, isolate):
+    done, out, left, extracted = _run_wayward(tmp_path, wayward["ok"], 0, isolate, name="inst_null")
     assert done.returncode == 1, done.stderr
     last = done.stderr.strip().splitlines()[-1]
-    assert last.startswith(f"run failed: component {name!r} failed during initialization "
-                           f"(t=0 s): ") and message in last, last
+    assert last.startswith("run failed: component 'inst_null' failed during initialization "
+                           "(t=0 s): ") and "Failed to instantiate model" in last, last
     assert left == [] and extracted == []
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("case, message", [
+    ("garbage", "binaries/linux64/Wayward.so: not a shared library (not an ELF file)"),
+    ("nosym", "binaries/linux64/Wayward.so does not export fmi2CancelStep, fmi2DeSerializeFMUstate, "
+              "fmi2DoStep, fmi2EnterInitializationMode, fmi2ExitInitializationMode, "
+              "fmi2FreeFMUstate and 28 more, which every FMI 2.0 CoSimulation FMU must"),
+])
+def test_a_library_that_cannot_be_loaded_is_refused_before_the_run(tmp_path, wayward, case, message):
+    done, out, left, extracted = _run_wayward(tmp_path, wayward[case], 0, False)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip().splitlines()[-1] == (
+        f"error: {tmp_path / 's.yaml'}:6: components.plant.fmu: {wayward[case]}: {message}")
+    assert left == [] and extracted == []
+
+
+@pytest.mark.parametrize("case, message", [("garbage", "Failed to load shared library"),
+                                           ("nosym", "undefined symbol: fmi2")])
+def test_a_library_that_fails_to_load_leaves_no_extracted_folder(tmp_path, wayward, case, message,
+                                                                  monkeypatch):
+    """What the archive check spares a run, had it been skipped: instantiate cleans up."""
+    from cosim.fmu.instance import FmuLog, instantiate
+    from cosim.fmu.interface import describe_fmu
+
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    monkeypatch.setattr("tempfile.tempdir", str(temp))
+    working_dir = os.getcwd()
+    with pytest.raises(Exception, match=message):
+        instantiate(wayward[case], describe_fmu(wayward[case], {}), "plant", FmuLog("plant"),
+                    model_exchange=False, logging_on=False)
+    assert list(temp.iterdir()) == []
+    assert os.getcwd() == working_dir  # fmpy's loader left it in the removed library folder
 
 
 @pytest.mark.timeout(120)
