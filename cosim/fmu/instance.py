@@ -179,7 +179,8 @@ class FmuInstance:
         status = getattr(exc, "status", None)
         if status == FATAL:
             self._fatal = True
-        details = {"kind": "fmi_status", "status": _STATUS.get(status, status)} if status else {}
+        details = ({"kind": "fmi_status", "status": _STATUS.get(status, status)} if status
+                   else dict(getattr(exc, "details", {})))  # a solver's finding, if it says one
         return ComponentFailure(self.name, tick, t, f"{_call_text(exc, where)} (FMU "
                                 f"{self.path.name}: {self.log.text()})", details)
 

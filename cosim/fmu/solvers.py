@@ -44,9 +44,11 @@ def make_solver(settings: dict[str, Any], fmu: Any, md: Any, fmi3: bool, t0: flo
         fmi3: FMI 3 (the derivatives getter's name differs).
         t0: the start time.
     """
+    names = [unknown.variable.name for unknown in md.derivatives]
     args = dict(nx=md.numberOfContinuousStates, nz=md.numberOfEventIndicators,
                 get_x=fmu.getContinuousStates, set_x=fmu.setContinuousStates,
-                get_dx=fmu.getContinuousStateDerivatives if fmi3 else fmu.getDerivatives,
+                get_dx=finite_derivatives(
+                    fmu.getContinuousStateDerivatives if fmi3 else fmu.getDerivatives, names),
                 get_z=fmu.getEventIndicators)
     if settings["method"] != "cvode":
         return FixedStep(settings["method"], settings["max_step"], set_time=fmu.setTime, **args)
@@ -68,6 +70,30 @@ def make_solver(settings: dict[str, Any], fmu: Any, md: Any, fmi3: bool, t0: flo
         CVodeSVtolerances(solver.cvode_mem, settings["rtol"], solver.abstol)
         solver.reset = _keep_atol(solver, settings["atol"])
     return solver
+
+
+class NonFiniteDerivative(ValueError):
+    """The FMU gave a derivative that is not a finite number (the message names it;
+    `details` is the manifest's cause)."""
+
+    def __init__(self, name: str, value: float) -> None:
+        super().__init__(f"the FMU's {name} is {value!r}")
+        self.details = {"kind": "non_finite_derivative", "derivative": name, "value": repr(value)}
+
+
+def finite_derivatives(get_dx: Any, names: list[str]) -> Any:
+    """`get_dx(pointer, n)` that raises NonFiniteDerivative naming the first derivative
+    the FMU returned as NaN or infinite: the integrator would otherwise go on with it
+    (CVode until it gives up, without saying which state)."""
+    def checked(pointer: Any, count: int) -> Any:
+        result = get_dx(pointer, count)
+        values = pointer[:count]
+        if not all(map(math.isfinite, values)):
+            index = next(i for i, v in enumerate(values) if not math.isfinite(v))
+            name = names[index] if index < len(names) else f"derivative {index}"
+            raise NonFiniteDerivative(name, values[index])
+        return result
+    return checked
 
 
 class CallGuard:
