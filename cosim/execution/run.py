@@ -42,6 +42,7 @@ if TYPE_CHECKING:  # loaded when needed: the Zenoh processes start before numpy/
 TRANSPORTS = ("inproc", "zenoh")
 DEFAULT_DEADLINE_S = 10.0
 MIN_REALTIME = 1e-3  # slower pacing looks like a hang: one tick of 10 ms would take 10 s
+RUN_FOLDER_MODE = 0o700  # a run folder is its owner's: `chmod` it to share it
 
 
 @dataclass
@@ -269,18 +270,22 @@ def _temporary_folder_of_the_run(page: Any, stack: contextlib.ExitStack) -> None
 
 
 def _make_run_folder(out: Path, replace: bool) -> Path:
-    """Create the run folder, absolute (an FMU may change the working directory); with
-    `replace`, an earlier run's folder there is emptied first (see check_out_folder).
-    One that cannot be made (a file there, no permission) is a UserError."""
+    """Create the run folder, absolute (an FMU may change the working directory) and
+    private (0700: other local users cannot read the run's signals, whatever the umask
+    gives its files); with `replace`, an earlier run's folder there is emptied first
+    (see check_out_folder). One that cannot be made (a file there, no permission) is a
+    UserError."""
     out = out.absolute()
     try:
         if replace and out.is_dir() and any(out.iterdir()):
             check_out_folder(out, force=True)
             _empty_folder(out)
-        out.mkdir(parents=True, exist_ok=True)
+        out.mkdir(mode=RUN_FOLDER_MODE, parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"cannot create the run folder {str(out)!r}: "
                         f"{exc.strerror or exc}") from None
+    with contextlib.suppress(OSError):  # a folder that was there (not ours, read-only: as it is)
+        out.chmod(RUN_FOLDER_MODE)
     return out
 
 

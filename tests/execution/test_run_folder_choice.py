@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -84,3 +85,17 @@ def test_a_component_that_changes_directory_does_not_move_the_run_folder(tmp_pat
     manifest = json.loads((tmp_path / "relative_run" / "manifest.json").read_text())
     assert manifest["status"] == "ok" and manifest["ticks"] == 30
     assert len(cosim.load_run(tmp_path / "relative_run").signals) == 31
+
+
+def test_a_run_folder_is_private_to_its_owner(tmp_path):
+    (tmp_path / "given").mkdir(mode=0o755)  # a folder the user made: the run makes it private too
+    for out in (tmp_path / "new" / "run", tmp_path / "given"):
+        cosim.run("open_loop", set=["duration=0.2"], out=out)
+        assert out.stat().st_mode & 0o777 == 0o700
+    if os.geteuid() == 0 and shutil.which("runuser"):  # another user cannot read its signals
+        tmp_path.chmod(0o755)
+        (tmp_path / "new").chmod(0o755)
+        other = subprocess.run(["runuser", "-u", "nobody", "--", "cat",
+                                str(tmp_path / "new" / "run" / "signals.csv")],
+                               capture_output=True, text=True)
+        assert other.returncode != 0 and "Permission denied" in other.stderr
