@@ -19,6 +19,9 @@ from __future__ import annotations
 
 import collections
 import ipaddress
+import logging
+import re
+import sys
 import threading
 import time
 from pathlib import Path
@@ -87,6 +90,32 @@ def static_scene(scenario: Any) -> tuple[list, tuple[float, float, float]]:
     return lines, (metrics.vehicle_length, metrics.vehicle_width, front)
 
 
+_NOT_A_CLIENT = re.compile(r"^Dropping client \S+: handshake failed$")
+
+
+class _SdkLog(logging.StreamHandler):
+    """The Foxglove SDK's log records on stderr, one line each, without the refused
+    handshakes (logged at ERROR level by the SDK, for every connection that is no
+    WebSocket client)."""
+
+    def __init__(self) -> None:
+        super().__init__(sys.stderr)
+        self.setFormatter(logging.Formatter("foxglove: %(message)s"))
+        self.addFilter(lambda record: not _NOT_A_CLIENT.match(record.getMessage()))
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.stream = sys.stderr  # the current one (a test's capture replaces it)
+        super().emit(record)
+
+
+def _quiet_sdk_log() -> None:
+    """Route the SDK's logger (and its children) to `_SdkLog` once, not to the root's."""
+    sdk = logging.getLogger("foxglove")
+    if not any(isinstance(h, _SdkLog) for h in sdk.handlers):
+        sdk.addHandler(_SdkLog())
+        sdk.propagate = False
+
+
 class FoxgloveLive:
     """Foxglove WebSocket server and master observer (see the module docstring).
 
@@ -124,7 +153,10 @@ class FoxgloveLive:
         return f"ws://{host}:{self.port}"
 
     def start(self) -> "FoxgloveLive":
-        """Start the server; a UserError when the port cannot be bound."""
+        """Start the server; a UserError when the port cannot be bound. The SDK's messages
+        go to stderr as "foxglove: ...", except its line per connection that is no
+        Foxglove client (any local port scan would fill the run's terminal)."""
+        _quiet_sdk_log()
         try:
             self.server = foxglove.start_server(name="cosim", host=self.host, port=self.requested_port,
                                                 context=self.context, server_listener=self.subscriptions)

@@ -114,3 +114,18 @@ def test_cli_foxglove_without_client_runs_and_says_where(tmp_path, capsys):
     assert "foxglove: ws://127.0.0.1:" in capsys.readouterr().out
     assert main(["run", str(SCENARIOS_DIR / "lane_change.yaml"), "--foxglove-host", "192.0.2.1",
                  "--foxglove"]) == 2
+
+
+def test_connections_that_are_no_foxglove_client_do_not_fill_the_terminal(capfd):
+    import logging
+    import socket
+
+    with FoxgloveLive(port=0) as live:
+        for _ in range(3):  # a port scan, a browser: each refused by the SDK with an error log
+            with socket.create_connection(("127.0.0.1", live.port)) as probe:
+                probe.sendall(b"GET / HTTP/1.0\r\n\r\n")
+        time.sleep(0.5)
+        logging.getLogger("foxglove.server").error("a real problem")  # still shown
+    err = capfd.readouterr().err
+    assert "Dropping client" not in err
+    assert "foxglove: a real problem" in err
