@@ -70,9 +70,13 @@ def normalize_realtime(argv: Sequence[str]) -> list[str]:
         following = args[i + 1] if i + 1 < len(args) else None
         if arg == "--realtime" and not _is_number(following):
             result.append("1.0")
-        if arg == "--foxglove" and not (following or "").isdigit():
+        if arg == "--foxglove" and not _is_integer(following):  # "-1": its range check says why
             result.append(str(FOXGLOVE_PORT))
     return result
+
+
+def _is_integer(text: str | None) -> bool:
+    return text is not None and text.lstrip("+-").isdigit()
 
 
 def _is_number(text: str | None) -> bool:

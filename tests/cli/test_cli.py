@@ -132,6 +132,14 @@ def test_bare_realtime_means_factor_one():
     assert normalize_realtime(["run", "--realtime", "4", "x.yaml"]) == ["run", "--realtime", "4", "x.yaml"]
 
 
+def test_a_negative_foxglove_port_is_its_value_not_an_option(capsys):
+    assert normalize_realtime(["run", "x.yaml", "--foxglove", "-1"]) == ["run", "x.yaml", "--foxglove", "-1"]
+    assert normalize_realtime(["run", "--foxglove", "--out", "d"]) == [
+        "run", "--foxglove", "8765", "--out", "d"]
+    assert main(["run", "open_loop", "--foxglove", "-1"]) == 2
+    assert capsys.readouterr().err.strip() == "error: --foxglove: expected a TCP port 0..65535, got -1"
+
+
 def test_unknown_transport_exit_2(good, capsys):
     assert main(["run", str(good), "--transport", "carrier-pigeon"]) == 2
     assert "unknown transport 'carrier-pigeon' (--transport: choose" in capsys.readouterr().err
