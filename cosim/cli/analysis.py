@@ -6,16 +6,19 @@
                [--signals PATTERN ...] [--out FILE]
     cosim compare RUN_DIR [RUN_DIR ...] [--out DIR]
     cosim sweep SCENARIO --vary PATH=LOW:HIGH ... --samples N [--seed S] [--set PATH=VALUE ...]
-                [--scheduler ADDRESS] [--out DIR] [--transport inproc|zenoh] [--method lhs|uniform]
+                [--scheduler ADDRESS] [--out DIR [--force]] [--transport inproc|zenoh]
+                [--method lhs|uniform]
 
 Their default outputs go to comparisons/ and sweeps/, not runs/, so that
 `cosim compare runs/*` sees only run folders; compare skips, with a note, an
 argument that is a compare or sweep output folder.
 
-A user error (missing run folder, bad --vary, --seed or --transport, a malformed or
-unreachable scheduler, an --out under a regular file or where nothing can be written)
-prints one line on stderr and exits with status 2, without a traceback. A missing --out
-folder is created, with its parents.
+A user error (missing run folder, bad --vary, --seed, --samples (1..100000) or
+--transport, a malformed or unreachable scheduler, an --out under a regular file or where
+nothing can be written, a sweep's non-empty --out without --force, or with it one that is
+not an earlier sweep's) prints one line on stderr and exits with status 2, without a
+traceback. A missing --out folder is created, with its parents. Ctrl-C during a sweep
+prints "sweep interrupted after N of M samples; finished ones indexed in DIR" and exits 1.
 """
 
 from __future__ import annotations
@@ -150,13 +153,16 @@ def sweep(scenario: str = typer.Argument(..., help="scenario YAML file, or a shi
                                              help="output folder (default: "
                                                   "sweeps/<name>-s<seed>-n<samples>-<UTC time>)"),
           transport: str = typer.Option("inproc", "--transport", help="inproc | zenoh, for each run"),
-          method: str = typer.Option("lhs", "--method", help="lhs | uniform")) -> None:
+          method: str = typer.Option("lhs", "--method", help="lhs | uniform"),
+          force: bool = typer.Option(False, "--force",
+                                     help="replace an earlier sweep's --out folder (one with "
+                                          "sweep.json or samples.csv)")) -> None:
     """Monte-Carlo runs of a scenario on Dask; the distribution of every metric.
 
     Example: cosim sweep lane_change --vary 'components.controller.parameters.ke=2:6' --samples 4
     """
     from cosim.analysis.outputs import check_folder
-    from cosim.execution.sweep import run_sweep
+    from cosim.execution.sweep import SweepInterrupted, run_sweep
     from cosim.scenario.shipped import find_scenario
 
     scenario_file = find_scenario(scenario)
@@ -166,9 +172,14 @@ def sweep(scenario: str = typer.Argument(..., help="scenario YAML file, or a shi
         check_folder(out_dir, None if out is None else f"--out {out}")
         result = run_sweep(scenario_file, vary, samples, seed=seed, scheduler=scheduler,
                            out_dir=out_dir, transport=transport, method=method,
-                           sets=sets or ())
+                           sets=sets or (), force=force)
     except UserError as exc:
         raise _fail(exc) from None
+    except SweepInterrupted as stop:  # Ctrl-C: the finished samples are indexed
+        from rich.console import Console
+
+        Console(stderr=True, highlight=False, soft_wrap=True).print(str(stop), markup=False)
+        raise typer.Exit(1) from None
     _print_summary(result)
     if result.summary:
         from cosim.figures.sweep import draw_sweep_histograms

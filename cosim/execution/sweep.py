@@ -14,9 +14,22 @@ address is given. Results, in sample order whatever order the tasks finish:
     OUT/sweep.json      the sweep's settings
     OUT/samples/sample_NNNN/   each sample's run folder
 
+OUT must be missing or empty; `force` replaces an earlier sweep's folder (one holding
+sweep.json or samples.csv, which is written as the sweep starts, status "running") and
+refuses any other non-empty folder. --samples is 1..MAX_SAMPLES.
+
 A sample whose run fails (a user error before tick 0, a component failure
 mid-run, a lost worker) is kept in samples.csv with status "failed" and the
-reason; the summary uses the samples that finished. std is the sample
+reason; the summary uses the samples that finished. A sample whose worker process
+dies while running it (a segfault in a component) fails alone and once: the cluster
+a sweep starts does not run a task again after it killed its worker
+(`distributed.scheduler.allowed-failures` 0), the samples lost with that worker
+without having started run again, and the dead sample's run folder is completed
+(`cosim.execution.sweep_samples`: CSV files from the spools, manifest "failed").
+On Ctrl-C (KeyboardInterrupt) nothing more is submitted, the running samples are
+cancelled (their cluster closed), their folders completed as "interrupted", and the
+index files are written with every sample that finished; `SweepInterrupted` then
+carries that result. std is the sample
 standard deviation (ddof = 1; 0 for a single value); percentiles interpolate
 linearly between order statistics (numpy's default).
 """
@@ -39,6 +52,9 @@ import numpy as np
 
 from cosim.analysis.outputs import make_folder, write_failure
 from cosim.analysis.rundata import AnalysisError
+from cosim.execution.sweep_samples import (check_samples_count, check_sweep_out, empty_folder,
+                                           lost_outcome, recorded_task,
+                                           remove_marks)
 from cosim.scenario.imports import import_roots
 
 STATS = ("n", "mean", "std", "min", "p5", "p50", "p95", "max")
@@ -86,8 +102,7 @@ def sample_points(varies: Sequence[Vary], samples: int, seed: int,
         seed: seed of numpy's default generator (same seed, same points), from 0 up.
         method: "lhs" (Latin hypercube) or "uniform".
     """
-    if samples < 1:
-        raise AnalysisError(f"--samples {samples}: need at least 1")
+    check_samples_count(samples)
     if seed < 0:  # numpy's generators take a seed from 0 up
         raise AnalysisError(f"--seed {seed}: must be a whole number from 0 up")
     if method not in METHODS:
@@ -324,7 +339,11 @@ def _run_task(run_fn: RunFunction, scenario_path: Path, transport: str, roots: t
     try:
         return "ok", dict(run_fn(scenario_path, overrides, run_dir, transport)), ""
     except Exception as exc:  # noqa: BLE001 - one bad sample must not end the sweep
-        return "failed", {}, f"sample {index}: {type(exc).__name__}: {exc}"
+        from cosim.errors import UserError
+
+        # a UserError's message says what failed (a component's crash too): no class name
+        what = str(exc) if isinstance(exc, UserError) else f"{type(exc).__name__}: {exc}"
+        return "failed", {}, f"sample {index}: {what}"
 
 
 # Dask's periodic work, slowed down for the clusters a sweep starts: the event-loop health
@@ -333,7 +352,10 @@ def _run_task(run_fn: RunFunction, scenario_path: Path, transport: str, roots: t
 # workers then do not get when they keep every core busy; nothing reads them sooner.
 # The workers' profiler (a thread sampling the running task's stack every 10 ms, for a
 # dashboard a sweep does not start) is off: ~4 % more runs per minute
-CLUSTER_CONFIG = {"distributed.admin.tick.interval": "1s",
+# A task that was running on a worker that died is not run again (Dask's default: 3 more
+# times, on 3 more workers): a sample that segfaults kills one worker, and fails alone.
+CLUSTER_CONFIG = {"distributed.scheduler.allowed-failures": 0,
+                  "distributed.admin.tick.interval": "1s",
                   "distributed.admin.system-monitor.interval": "2s",
                   "distributed.worker.memory.monitor-interval": "1s",
                   "distributed.worker.profile.enabled": False}
@@ -341,7 +363,8 @@ CLUSTER_CONFIG = {"distributed.admin.tick.interval": "1s",
 
 def local_cluster(workers: int, **options: Any) -> Any:
     """The `distributed.LocalCluster` a sweep starts: `workers` processes of one thread each,
-    each on its own CPU (`cosim.execution.worker_cpus`), no dashboard, quiet logs, Dask's
+    each on its own CPU (`cosim.execution.worker_cpus`), no dashboard, Dask's logs silent
+    (a sample's failure, a worker's death included, is the sweep's to report, in one line), Dask's
     periodic work slowed (`CLUSTER_CONFIG`), the scheduler's streams to the workers batched
     every `BATCH_INTERVAL`; `options` are more LocalCluster keyword arguments (e.g.
     processes=False)."""
@@ -350,11 +373,15 @@ def local_cluster(workers: int, **options: Any) -> Any:
     from distributed import LocalCluster
 
     settings = {"n_workers": workers, "threads_per_worker": 1, "processes": True,
-                "dashboard_address": None, "silence_logs": logging.ERROR, **options}
+                "dashboard_address": None, "silence_logs": logging.CRITICAL, **options}
     if "plugins" not in settings:  # each worker process on its own CPU (worker_cpus)
         from cosim.execution.worker_cpus import worker_plugins
 
         settings["plugins"] = worker_plugins(workers, bool(settings["processes"]))
+        if settings["processes"]:  # Ctrl-C is this process's to handle (sweep_samples)
+            from cosim.execution.sweep_worker import IgnoreInterrupt
+
+            settings["plugins"] = {*settings["plugins"], IgnoreInterrupt()}
     # the scheduler's streams to its workers are made as the workers join, within the block
     with dask.config.set(CLUSTER_CONFIG), _batches_every(distributed.scheduler, BATCH_INTERVAL):
         return LocalCluster(**settings)
@@ -447,38 +474,122 @@ def _threads(client: Any) -> int:
     return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
 
 
+class SamplesInterrupted(Exception):
+    """Ctrl-C during `execute_samples`: `outcomes` holds each job's outcome, None for a
+    sample that never started (one that started and did not finish is "interrupted")."""
+
+    def __init__(self, outcomes: list[tuple[str, dict, str] | None]) -> None:
+        super().__init__("interrupted")
+        self.outcomes = outcomes
+
+
 def execute_samples(task: Callable[..., tuple[str, dict[str, float], str]],
                     jobs: Sequence[tuple[int, list[str], Path]], scheduler: str | None,
                     cluster_options: dict[str, Any] | None,
                     check: SampleCheck | None = None) -> list[tuple[str, dict, str]]:
     """Run the jobs (index, overrides, run_dir) as Dask tasks; results in job order.
 
-    A task lost with its worker (KilledWorker and the like) becomes a failed sample.
-    `check`, if given, validates the samples on the cluster first: every run task
-    depends on the validation tasks and runs only if every sample is valid; otherwise
-    the check's refusal (UserError) is raised here and no sample has run.
+    Each task goes through `cosim.execution.sweep_samples.recorded_task` (its start mark and
+    outcome beside its run folder). A task lost with its worker (KilledWorker and the
+    like) becomes a failed sample if it had started (its run folder completed), and runs
+    again, on the cluster the sweep started, if it had not. `check`, if given, validates
+    the samples on the cluster first: every run task depends on the validation tasks and
+    runs only if every sample is valid; otherwise the check's refusal (UserError) is raised
+    here and no sample has run.
+
+    Raises:
+        SamplesInterrupted on Ctrl-C, once the cluster is closed (a cluster the sweep
+        started: its worker processes ended) and every outcome read from the disk.
     """
     workers = max(1, min(len(jobs), os.cpu_count() or 1))
-    client, cluster = _client(scheduler, workers, cluster_options)
+    own = scheduler is None
+    # a fault report only in worker processes of our own (not threads of this process)
+    recorded = partial(recorded_task, task, own and bool((cluster_options or {}).get("processes", True)))
+    outcomes: list[tuple[str, dict, str] | None] = [None] * len(jobs)
+    client = cluster = None
     try:
+        client, cluster = _client(scheduler, workers, cluster_options)
         checks = check.submit(client, _threads(client)) if check is not None else []
         if checks:  # each run task gets the checks' futures as arguments: its dependencies
-            futures = client.map(partial(_gated, task), [checks] * len(jobs), *zip(*jobs), pure=False)
+            futures = client.map(partial(_gated, recorded), [checks] * len(jobs), *zip(*jobs),
+                                 pure=False)
         else:
-            futures = client.map(task, *zip(*jobs), pure=False)
+            futures = client.map(recorded, *zip(*jobs), pure=False)
         if check is not None:
             check.refuse(client.gather(checks))  # raises if a sample is invalid: nothing ran
-        return _outcomes(client, jobs, futures)
+        _outcomes(client, jobs, futures, recorded if own else None, outcomes)
+        return outcomes  # type: ignore[return-value]  # every one filled in
+    except KeyboardInterrupt:
+        with _no_interrupts():  # a second Ctrl-C does not cut the clean-up short
+            _end_workers(cluster)
+            _close(client, cluster)
+            client = cluster = None
+            for position, (index, _, run_dir) in enumerate(jobs):
+                if outcomes[position] is None:
+                    outcomes[position] = lost_outcome(index, run_dir, interrupted=True)
+        raise SamplesInterrupted(outcomes) from None
     finally:
-        client.close()
+        _close(client, cluster)
+        remove_marks([run_dir for _, _, run_dir in jobs])
+
+
+def _end_workers(cluster: Any) -> None:
+    """Kill the worker processes of the cluster the sweep started (None: joined, or none yet):
+    a cluster's close waits for the running samples to end. What a killed worker leaves
+    ends with it: the CSV writer at the end of its input, a Zenoh component process when the
+    master's liveliness token goes, an isolated FMU's process by PR_SET_PDEATHSIG."""
+    import signal
+
+    if cluster is None:
+        return
+    for nanny in list(getattr(cluster, "workers", {}).values()):
+        pid = getattr(nanny, "pid", None)  # a Nanny's worker process; threads: no pid
+        if isinstance(pid, int) and pid != os.getpid():
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+
+
+def _close(client: Any, cluster: Any) -> None:
+    """Close the sweep's client and the cluster it started (None: nothing to close)."""
+    with contextlib.suppress(Exception):
+        if client is not None:
+            client.close()
+    with contextlib.suppress(Exception):
         if cluster is not None:
             cluster.close()
 
 
-def _outcomes(client: Any, jobs: Sequence[tuple[int, list[str], Path]],
-              futures: Sequence[Any]) -> list[tuple[str, dict, str]]:
-    """Each job's outcome, once every task is done, in job order; a task lost with its
-    worker (KilledWorker and the like) becomes a failed sample.
+@contextlib.contextmanager
+def _no_interrupts() -> Iterator[None]:
+    """Within the block, Ctrl-C (SIGINT) is ignored (in the main thread; elsewhere as is)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _killed_worker(error: BaseException) -> bool:
+    """Whether a task's error is Dask's "lost with the workers that ran it"."""
+    from distributed.scheduler import KilledWorker
+
+    return isinstance(error, KilledWorker)
+
+
+def _outcomes(client: Any, jobs: Sequence[tuple[int, list[str], Path]], futures: Sequence[Any],
+              again: Callable[..., Any] | None, outcomes: list[tuple[str, dict, str] | None]) -> None:
+    """Fill in each job's outcome, once every task is done, in job order.
+
+    A task lost with its worker (KilledWorker and the like) is a failed sample when it had
+    started (`lost_outcome`: its run folder completed, the error naming how its process
+    died); one that never started (lost with a worker that died running another) is
+    submitted again, as `again`, if given (a cluster of the sweep's own), else failed.
 
     The finished tasks' results come in one gather, after the last: fetched one future at a
     time, each was a round trip through the scheduler, in the client's process (~1 ms of CPU
@@ -486,22 +597,39 @@ def _outcomes(client: Any, jobs: Sequence[tuple[int, list[str], Path]],
     """
     from distributed import wait
 
-    # `wait` goes through the current client: through another one the caller holds (as
-    # bench_sweep does) it returned ~2 s after the last task
-    with client.as_current():
-        wait(futures)
-    finished = [f for f in futures if f.status == "finished"]
-    results = dict(zip((f.key for f in finished), client.gather(finished)))
-    outcomes = []
-    for (index, _, _), future in zip(jobs, futures):
-        if future.key in results:
-            outcomes.append(results[future.key])
-            continue
-        try:
-            outcomes.append(future.result())
-        except Exception as exc:  # noqa: BLE001 - the worker died, not the run
-            outcomes.append(("failed", {}, f"sample {index}: task lost: {type(exc).__name__}: {exc}"))
-    return outcomes
+    pending = list(enumerate(futures))
+    for _ in range(len(jobs) + 1):  # each round again follows a sample that killed a worker
+        # `wait` goes through the current client: through another one the caller holds (as
+        # bench_sweep does) it returned ~2 s after the last task
+        with client.as_current():
+            wait([future for _, future in pending])
+        finished = [future for _, future in pending if future.status == "finished"]
+        results = dict(zip((f.key for f in finished), client.gather(finished)))
+        retry = []
+        for position, future in pending:
+            index, _, run_dir = jobs[position]
+            if future.key in results:
+                outcomes[position] = results[future.key]
+                continue
+            try:
+                outcomes[position] = future.result()
+                continue
+            except KeyboardInterrupt:
+                raise
+            except BaseException as exc:  # noqa: BLE001 - the worker died, not the run
+                lost = exc
+            outcome = lost_outcome(index, run_dir)
+            if outcome is None and again is not None and _killed_worker(lost):
+                retry.append(position)  # never started: it runs on another worker
+                continue
+            outcomes[position] = outcome or (
+                "failed", {}, f"sample {index}: task lost: {type(lost).__name__}: {lost}")
+        if not retry:
+            return
+        again_jobs = [jobs[position] for position in retry]
+        pending = list(zip(retry, client.map(again, *zip(*again_jobs), pure=False)))
+    for position, future in pending:  # not reached: a worker died in every round
+        outcomes[position] = ("failed", {}, f"sample {jobs[position][0]}: task lost again and again")
 
 
 def _metric_names(samples: Sequence[SampleResult]) -> list[str]:
@@ -560,12 +688,32 @@ def write_sweep_files(result: SweepResult, settings: dict[str, Any]) -> list[Pat
     return [out / name for name in files]
 
 
+class SweepInterrupted(Exception):
+    """Ctrl-C during a sweep: `result` holds every sample (those that did not finish are
+    "interrupted"), its index files written; `finished` counts the samples that ran to
+    their end (ok or failed)."""
+
+    def __init__(self, result: SweepResult, finished: int) -> None:
+        self.result = result
+        self.finished = finished
+        super().__init__(f"sweep interrupted after {finished} of {len(result.samples)} samples; "
+                         f"finished ones indexed in {result.out_dir}")
+
+
+def _sweep_json(out: Path, settings: dict[str, Any]) -> None:
+    """Write sweep.json (settings and status) into the sweep's folder."""
+    try:
+        (out / "sweep.json").write_text(json.dumps(settings, indent=2) + "\n")
+    except OSError as exc:
+        raise write_failure(out / "sweep.json", exc) from None
+
+
 def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: int,
               seed: int = 0, scheduler: str | None = None, out_dir: str | Path = "sweep",
               transport: str = "inproc", method: str = "lhs",
               run_fn: RunFunction | None = None,
               cluster_options: dict[str, Any] | None = None,
-              sets: Sequence[str] = ()) -> SweepResult:
+              sets: Sequence[str] = (), force: bool = False) -> SweepResult:
     """Run a Monte-Carlo sweep of a scenario on Dask (see the module docstring).
 
     Args:
@@ -581,11 +729,16 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
             `run_scenario_sample`. Must be picklable for process workers.
         cluster_options: extra LocalCluster keyword arguments (e.g. processes=False).
         sets: fixed "PATH=VALUE" overrides applied to every sample before the varied ones.
+        force: replace an earlier sweep's folder at out_dir (else out_dir must be missing
+            or empty).
     Raises:
-        UserError: a bad argument (range, count, seed, method, transport, scheduler address,
-            an output folder that cannot be made), before any sample runs; an invalid sample
-            (see SampleCheck); a scheduler that cannot be reached.
+        UserError: a bad argument (range, count 1..MAX_SAMPLES, seed, method, transport,
+            scheduler address, an output folder that is not empty or cannot be made), before
+            any sample runs; an invalid sample (see SampleCheck); a scheduler that cannot be
+            reached.
+        SweepInterrupted: Ctrl-C; the index files are written (see the module docstring).
     """
+    from cosim.errors import UserError
     from cosim.execution.run import check_run_options
 
     parsed = [v if isinstance(v, Vary) else parse_vary(v) for v in varies]
@@ -600,9 +753,17 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
     check_run_options(transport, None)  # else every sample would fail on it, on the cluster
     if scheduler is not None:
         check_scheduler(scheduler)
+    check_samples_count(samples)
+    replace = check_sweep_out(out_dir, force)
     points = sample_points(parsed, samples, seed, method)
+    if replace:
+        empty_folder(Path(out_dir))
     out = make_folder(out_dir)
     make_folder(out / "samples")
+    settings = {"scenario": str(scenario_path), "varies": [v.__dict__ for v in parsed],
+                "sets": list(sets), "samples": samples, "seed": seed, "method": method,
+                "transport": transport, "scheduler": scheduler}
+    _sweep_json(out, {**settings, "status": "running"})  # an earlier sweep's, for --force
     jobs = [(i, list(sets) + [format_override(v.path, x) for v, x in zip(parsed, row)],
              (out / "samples" / f"sample_{i:04d}").resolve()) for i, row in enumerate(points)]
     roots = import_roots(scenario_path)
@@ -616,12 +777,24 @@ def run_sweep(scenario_path: str | Path, varies: Sequence[str | Vary], samples: 
         own_processes = scheduler is None and (cluster_options or {}).get("processes", True)
         run_fn = partial(run_scenario_sample, runs_in_process=samples if own_processes else None)
     task = partial(_run_task, run_fn, scenario_path, transport, roots)
-    outcomes = execute_samples(task, jobs, scheduler, cluster_options, check)
+    interrupted = False
+    try:
+        outcomes = execute_samples(task, jobs, scheduler, cluster_options, check)
+    except SamplesInterrupted as stop:
+        interrupted = True
+        outcomes = [outcome or ("interrupted", {}, f"sample {i}: not run (the sweep was interrupted)")
+                    for i, outcome in enumerate(stop.outcomes)]
+    except UserError as exc:  # refused (an invalid sample) or no cluster: nothing ran
+        _sweep_json(out, {**settings, "status": "refused", "error": str(exc)})
+        raise
     results = [SampleResult(i, [float(x) for x in row], status, metrics, error)
                for (i, row), (status, metrics, error) in zip(enumerate(points), outcomes)]
     result = SweepResult(parsed, results, summarize_samples(results), out, [])
-    settings = {"scenario": str(scenario_path), "varies": [v.__dict__ for v in parsed],
-                "sets": list(sets), "samples": samples, "seed": seed, "method": method, "transport": transport,
-                "scheduler": scheduler, "failed": len(result.failures)}
+    settings["failed"] = sum(s.status == "failed" for s in results)
+    if interrupted:
+        settings["interrupted"] = sum(s.status == "interrupted" for s in results)
+    settings["status"] = "interrupted" if interrupted else "finished"
     result.files = write_sweep_files(result, settings)
+    if interrupted:
+        raise SweepInterrupted(result, sum(s.status in ("ok", "failed") for s in results))
     return result
