@@ -243,6 +243,10 @@ def lost_outcome(index: int, run_dir: Path, interrupted: bool = False) -> Outcom
     if interrupted and not (run_dir / "manifest.json").exists():
         marks(run_dir)[0].unlink(missing_ok=True)
         return None  # its run had not begun (no manifest): as a sample never started
+    ended = _ended_run(run_dir) if interrupted else None
+    if ended is not None:  # its run had ended; only its task had not come back
+        marks(run_dir)[0].unlink(missing_ok=True)
+        return ended
     if interrupted:
         error = f"sample {index}: interrupted (Ctrl-C) while running"
         status = "interrupted"
@@ -251,6 +255,20 @@ def lost_outcome(index: int, run_dir: Path, interrupted: bool = False) -> Outcom
     error += complete_sample_folder(run_dir, status, error)
     marks(run_dir)[0].unlink(missing_ok=True)
     return status, {}, error
+
+
+def _ended_run(run_dir: Path) -> Outcome | None:
+    """(status, the metrics it wrote, error) of a run whose final manifest is written;
+    None while its manifest says "running" (or cannot be read)."""
+    try:
+        manifest = json.loads((run_dir / "manifest.json").read_text(encoding="utf-8"))
+        metrics = json.loads((run_dir / "metrics.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(manifest, dict) or manifest.get("status") in (None, "running"):
+        return None
+    return (str(manifest["status"]), dict(metrics) if isinstance(metrics, dict) else {},
+            str(manifest.get("error") or ""))
 
 
 def remove_marks(run_dirs: list[Path]) -> None:

@@ -20,7 +20,7 @@ import pytest
 
 from cosim.cli.app import main
 from cosim.execution.sweep import parse_vary, sample_points
-from cosim.execution.sweep_samples import MAX_SAMPLES, died_error, fault_report, marks
+from cosim.execution.sweep_samples import MAX_SAMPLES, OUTCOME_SUFFIX, died_error, fault_report, marks
 from tests.helpers.components import GOOD
 from tests.helpers.paths import REPO_ROOT
 
@@ -147,8 +147,8 @@ def test_the_error_of_a_dead_worker_names_what_its_fault_report_says(tmp_path):
 def test_ctrl_c_indexes_the_finished_samples_and_leaves_no_process(tmp_path):
     vary = "components.seg.parameters.seconds=0.0:0.05"  # per step: 0.2 to 10 s a sample
 
-    def one_finished(out: Path) -> bool:
-        return any((out / "samples").glob("sample_*/metrics.json"))
+    def one_finished(out: Path) -> bool:  # its task's outcome is on disk: it counts as done
+        return any((out / "samples").glob(f".sample_*{OUTCOME_SUFFIX}"))
 
     done, out, left = _sweep(tmp_path, SLOW, "--vary", vary, "--samples", "4", "--seed", "1",
                              interrupt_when=one_finished)
