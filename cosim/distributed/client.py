@@ -8,7 +8,8 @@
 deployment settings (endpoints, TLS, ACL) and which starts the placed
 components through their worker instead of as local children. Before any
 component starts it checks that every named worker answers, and fails naming
-the missing ones and the reachable ones. A `WorkerChild` stands for a remote
+the missing ones and the reachable ones, and that no name is answered by two
+workers (a start request would reach both). A `WorkerChild` stands for a remote
 process where the transport expects a local one: its exit code comes from the
 worker's exit notice, and a failure mid-run names the worker and its host.
 A placed component's process is the ordinary runner, so a parameter its
@@ -39,6 +40,7 @@ from cosim.transport.zenoh.host import ZenohComponents
 from cosim.transport.zenoh.processes import ChildProcess
 
 QUERY_TIMEOUT_S = 0.3
+QUERY_INTERVAL_S = 0.05  # between two discovery queries
 START_TIMEOUT_S = 5.0
 STOP_TIMEOUT_S = 1.8
 SETTLE_PROBE_S = 0.2
@@ -46,25 +48,31 @@ SETTLE_POLL_S = 0.05
 
 
 def query_workers(session: Any, timeout_s: float,
-                  wanted: set[str] | None = None) -> dict[str, dict[str, Any]]:
+                  wanted: set[str] | None = None) -> dict[str, list[dict[str, Any]]]:
     """Ask every reachable worker for its info, retrying until `timeout_s`.
 
     Peers that just connected can miss the first query (DESIGN.md), so the
-    query is repeated; it ends early once every worker of `wanted` answered.
+    query is repeated, `QUERY_INTERVAL_S` apart (a query nobody answers returns at
+    once: the loop sleeps, it does not spin); it ends early once every worker of
+    `wanted` answered. Every answer is kept (no consolidation by key), so two
+    workers that answer to the same name both show up.
 
     Args:
         session: an open Zenoh session joined to the workers (or their router).
         timeout_s: total time to look.
         wanted: worker names that must answer (None: look for the whole time).
     Returns:
-        worker name -> its info reply.
+        worker name -> the info reply of each worker that answers to that name (one,
+        unless several workers use the same name), in the order they first answered.
     """
-    found: dict[str, dict[str, Any]] = {}
+    found: dict[str, dict[str, dict[str, Any]]] = {}  # name -> replier -> info
     end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        wait = max(0.01, min(QUERY_TIMEOUT_S, end - time.monotonic()))
-        for reply in session.get(proto.worker_key("*"), payload=proto.encode({"op": "info"}),
-                                 timeout=wait):
+    request = proto.encode({"op": "info"})
+    while True:
+        began = time.monotonic()
+        wait = max(0.01, min(QUERY_TIMEOUT_S, end - began))
+        for reply in session.get(proto.worker_key("*"), payload=request, timeout=wait,
+                                 consolidation=zenoh.ConsolidationMode.NONE):
             if reply.ok is None:
                 continue
             try:
@@ -72,14 +80,43 @@ def query_workers(session: Any, timeout_s: float,
             except ValueError:
                 continue
             if info.get("ok") and isinstance(info.get("name"), str):
-                found[info["name"]] = info
-        if wanted is not None and wanted <= set(found):
+                replier = str(getattr(reply, "replier_id", None)
+                              or (info.get("host"), info.get("pid")))
+                found.setdefault(info["name"], {})[replier] = info
+        now = time.monotonic()
+        if (wanted is not None and wanted <= set(found)) or now >= end:
             break
-    return found
+        time.sleep(max(0.0, min(QUERY_INTERVAL_S - (now - began), end - now)))
+    return {name: list(by_replier.values()) for name, by_replier in found.items()}
+
+
+def describe_worker(info: Mapping[str, Any]) -> str:
+    """"host 'h' (pid 12, listening on tcp/...)" of a worker's info reply, for messages."""
+    listen = ", ".join(map(str, info.get("listen") or [])) or "no endpoint of its own"
+    return f"host {info.get('host')!r} (pid {info.get('pid')}, listening on {listen})"
+
+
+def duplicate_names(found: Mapping[str, Sequence[Mapping[str, Any]]],
+                    names: set[str] | None = None) -> str:
+    """The message naming every worker name (of `names`, None: all) that several
+    workers answer to, or "" when each name is one worker's.
+
+    Args:
+        found: what `query_workers` returned.
+        names: the names that matter (the placed ones).
+    """
+    lines = [f"worker name {name!r} is answered by {len(infos)} workers: "
+             + "; ".join(sorted(describe_worker(i) for i in infos))
+             for name, infos in sorted(found.items())
+             if len(infos) > 1 and (names is None or name in names)]
+    return "\n".join(lines)
 
 
 def list_workers(settings: DeploySettings, timeout_s: float = 1.0) -> list[dict[str, Any]]:
     """Every worker reachable with these settings, sorted by name (`cosim workers`).
+
+    Workers that share a name are all listed (each with its host and pid), so that
+    the duplicate shows; a run placed on that name refuses to start.
 
     Args:
         settings: connect endpoints (workers or a router), TLS, ACL.
@@ -92,7 +129,9 @@ def list_workers(settings: DeploySettings, timeout_s: float = 1.0) -> list[dict[
         raise UserError(f"cannot open a Zenoh session to {settings.connect}: {exc}") from None
     with session:
         found = query_workers(session, timeout_s)
-    return [found[name] for name in sorted(found)]
+    return [info for name in sorted(found)
+            for info in sorted(found[name], key=lambda i: (str(i.get("host")), str(i.get("pid")),
+                                                           str(i.get("listen"))))]
 
 
 def ask_worker(session: Any, worker: str, request: dict[str, Any],
@@ -328,7 +367,8 @@ class DistributedComponents(ZenohComponents):
         wanted = set(self.placement.values())
         if not wanted:
             return
-        self.workers = query_workers(self.session, self.settings.discovery_timeout_s, wanted)
+        found = query_workers(self.session, self.settings.discovery_timeout_s, wanted)
+        self.workers = {name: infos[0] for name, infos in found.items()}
         missing = sorted(wanted - set(self.workers))
         if missing:
             placed = ", ".join(f"{c} on {w!r}" for c, w in sorted(self.placement.items())
@@ -338,6 +378,10 @@ class DistributedComponents(ZenohComponents):
             raise UserError(f"run {self.run_id!r}: worker(s) {', '.join(map(repr, missing))} "
                             f"not reachable within {self.settings.discovery_timeout_s:g} s "
                             f"(placed: {placed}); reachable workers: {reachable}")
+        duplicates = duplicate_names(found, wanted)
+        if duplicates:  # a start request to that name would reach (and start on) each of them
+            raise UserError(f"run {self.run_id!r}: " + duplicates.replace("\n", "; ")
+                            + "; give each worker its own --name")
 
     def _spawn(self, spec: PythonComponentLaunch) -> Any:
         worker = self.placement.get(spec.name)
@@ -354,9 +398,12 @@ class DistributedComponents(ZenohComponents):
         while (sample := self._exits.try_recv()) is not None:
             name = str(sample.key_expr).rsplit("/", 1)[-1]
             try:
-                self._notices[name] = proto.decode(sample.payload.to_bytes(), "exit notice")
+                notice = proto.decode(sample.payload.to_bytes(), "exit notice")
             except ValueError:
                 continue
+            code = notice.get("exit_code")
+            if (isinstance(code, int) and not isinstance(code, bool)) or code is None:
+                self._notices[name] = notice  # anything else is no worker's notice: ignored
         return self._notices.get(component)
 
     def worker_gone(self, worker: str) -> bool:
@@ -374,7 +421,8 @@ class DistributedComponents(ZenohComponents):
         if isinstance(child, WorkerChild):
             if child.where not in failure.cause:
                 failure = ComponentFailure(failure.component, failure.tick, failure.time,
-                                           f"{failure.cause}; it ran on {child.where}")
+                                           f"{failure.cause}; it ran on {child.where}",
+                                           failure.details)
             if self.exit_notice(child.name) is None:
                 self._settle(child.worker)
         return super()._fail(failure)

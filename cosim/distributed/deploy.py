@@ -19,9 +19,16 @@ own YAML file (`--deploy FILE`), never in the scenario:
       rules: [...]
       subjects: [...]
       policies: [...]
-    discovery_timeout_s: 3.0             # how long the master looks for its workers
-    lease_s: 2.0                         # a silent link (cut cable) is dropped after this
-    open_timeout_s: 1.0                  # longest attempt to open a link (bounds close too)
+    discovery_timeout_s: 3.0             # how long the master looks for its workers (0-600 s]
+    lease_s: 2.0                         # a silent link (cut cable) is dropped after this [0.5-3600 s]
+    open_timeout_s: 1.0                  # longest attempt to open a link, bounds close too (0-600 s]
+
+The timings must be finite numbers within the bounds above. The TLS files are
+checked when the file is read, each problem naming the file, its line and the
+field: readable, PEM (BEGIN/END markers around base64), certificates that parse
+as X.509 and are valid now (not expired, not yet valid), and a private key that
+neither group nor others may read (like the credentials file). Whether the key
+matches its certificate is left to the TLS handshake.
 
 A node with `auth` presents the shared credential and accepts the peers that
 present it (the credentials file is also its Zenoh dictionary file).
@@ -40,11 +47,15 @@ from typing import Any, Optional
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from cosim.errors import UserError
-from cosim.scenario.yaml_lines import read_yaml_file
+from cosim.distributed.pem_files import check_pem_file
+from cosim.errors import Problem, ProblemsError, UserError
+from cosim.scenario.yaml_lines import LineMap, load_yaml, read_yaml_file
 from cosim.transport.zenoh.auth import Credential, read_credential_file
 
 _PROTOCOLS = ("tcp", "tls", "udp", "quic", "unixsock-stream")
+MAX_DISCOVERY_TIMEOUT_S = 600.0
+MAX_LEASE_S = 3600.0
+MAX_OPEN_TIMEOUT_S = 600.0
 
 
 class TlsSettings(BaseModel):
@@ -74,9 +85,9 @@ class DeploySettings(BaseModel):
     tls: Optional[TlsSettings] = None
     auth: Optional[AuthSettings] = None
     access_control: Optional[dict[str, Any]] = None
-    discovery_timeout_s: float = Field(3.0, gt=0)
-    lease_s: float = Field(2.0, ge=0.5)
-    open_timeout_s: float = Field(1.0, gt=0)
+    discovery_timeout_s: float = Field(3.0, gt=0, le=MAX_DISCOVERY_TIMEOUT_S, allow_inf_nan=False)
+    lease_s: float = Field(2.0, ge=0.5, le=MAX_LEASE_S, allow_inf_nan=False)
+    open_timeout_s: float = Field(1.0, gt=0, le=MAX_OPEN_TIMEOUT_S, allow_inf_nan=False)
 
     def credential(self) -> Credential | None:
         """The shared credential of `auth` (read now; UserError when the file is unsafe)."""
@@ -114,25 +125,28 @@ def load_deploy(path: str | Path) -> DeploySettings:
     Args:
         path: the YAML file.
     Raises:
-        UserError naming the file and each bad field.
+        UserError naming the file, the line and each bad field ("FILE:LINE: FIELD: ...").
     """
     path = Path(path)
     try:  # bounded and checked like a scenario file (size, UTF-8, NUL, nesting)
-        document = yaml.safe_load(read_yaml_file(path)) or {}
+        document, lines, problems = load_yaml(read_yaml_file(path))
     except (OSError, yaml.YAMLError, RecursionError) as exc:
         reason = getattr(exc, "problem", None) or exc
         raise UserError(f"{path}: cannot read deployment file: {reason}") from None
+    if problems:
+        raise ProblemsError(path, problems)
+    document = document if document is not None else {}
     if not isinstance(document, dict):
         raise UserError(f"{path}: a deployment file is a mapping (listen, connect, tls, "
                         f"access_control), got {type(document).__name__}")
     try:
         settings = DeploySettings.model_validate(document)
     except ValidationError as exc:
-        lines = [f"{path}: {'.'.join(str(p) for p in e['loc']) or '<file>'}: {e['msg']}"
-                 for e in exc.errors()]
-        raise UserError("\n".join(lines)) from None
+        raise ProblemsError(path, [Problem(".".join(str(p) for p in e["loc"]),
+                                           lines.line_of(e["loc"]), e["msg"])
+                                   for e in exc.errors()]) from None
     if settings.tls is not None:
-        settings.tls = _resolve_tls(settings.tls, path)
+        settings.tls = _resolve_tls(settings.tls, path, lines)
     if settings.auth is not None:
         file = Path(settings.auth.credentials_file)
         file = file if file.is_absolute() else path.parent / file
@@ -141,13 +155,17 @@ def load_deploy(path: str | Path) -> DeploySettings:
     return settings
 
 
-def _resolve_tls(tls: TlsSettings, path: Path) -> TlsSettings:
+def _resolve_tls(tls: TlsSettings, path: Path, lines: LineMap) -> TlsSettings:
+    """The TLS settings with absolute paths, every file checked (see the module docstring)."""
     resolved = {}
     for field in ("root_ca_certificate", "certificate", "private_key"):
         file = Path(getattr(tls, field))
         file = file if file.is_absolute() else (path.parent / file)
-        if not file.is_file():
-            raise UserError(f"{path}: tls.{field}: no such file {str(file)!r}")
+        problem = (f"no such file {str(file)!r}" if not file.is_file()
+                   else check_pem_file(file, private=field == "private_key"))
+        if problem:
+            raise ProblemsError(path, [Problem(f"tls.{field}", lines.line_of(("tls", field)),
+                                               problem)])
         resolved[field] = str(file.resolve())
     return tls.model_copy(update=resolved)
 

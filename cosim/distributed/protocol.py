@@ -63,6 +63,26 @@ def module_allowed(class_path: str, allow: Sequence[str]) -> bool:
     return False
 
 
+def check_prefix(prefix: str) -> str:
+    """Return `prefix` if it can be an allow-list entry, else raise ValueError naming it.
+
+    An entry is a dotted module name ("mypackage.models") or a package with a
+    trailing dot ("mypackage."); an empty prefix would allow every module.
+
+    Args:
+        prefix: a value of `cosim worker --allow`.
+    """
+    text = str(prefix)
+    name = text[:-1] if text.endswith(".") else text
+    if not name:
+        raise ValueError(f"--allow {text!r}: an empty module prefix would allow every module; "
+                         f"give a package such as 'mypackage.' or a module such as 'mypackage.x'")
+    if any(not part.isidentifier() for part in name.split(".")):
+        raise ValueError(f"--allow {text!r}: not a module prefix (dotted Python names, "
+                         f"e.g. 'mypackage.' or 'mypackage.models')")
+    return text
+
+
 def encode(document: dict[str, Any]) -> bytes:
     """A request or reply as bytes."""
     return json.dumps(document, separators=(",", ":")).encode()

@@ -76,7 +76,8 @@ class Worker:
     Args:
         name: the worker's name (a key chunk: letters, digits, '_', '.', '-').
         settings: endpoints, TLS and ACL of its session.
-        allow: module prefixes of the component classes it may start.
+        allow: module prefixes of the component classes it may start, in addition to
+            `protocol.DEFAULT_ALLOW` (an empty or malformed prefix is refused).
         allow_fmu: whether masters may send FMUs (native code) to run here.
         insecure: start components even though nothing authenticates the masters.
         max_components: most component processes hosted at once.
@@ -92,7 +93,8 @@ class Worker:
             raise ValueError(f"worker name {name!r} is reserved: host: {name} (and --place NAME={name}) "
                              f"means {RESERVED_HOSTS[name]}")
         self.settings = settings or DeploySettings()
-        self.allow = tuple(allow) or proto.DEFAULT_ALLOW
+        self.allow = tuple(dict.fromkeys([*proto.DEFAULT_ALLOW,
+                                          *(proto.check_prefix(p) for p in allow)]))
         self.host = socket.gethostname()
         self._children: dict[tuple[str, str], _Hosted] = {}
         self._masters: dict[str, Any] = {}        # run id -> liveliness subscriber of its master
@@ -108,8 +110,9 @@ class Worker:
         self._session: Any = None
         self.allow_fmu = bool(allow_fmu)
         # private (0700) and this process's own: a shared folder in /tmp would let another
-        # local user plant an FMU under the name of a hash, which would then be run
-        self._fmu_cache = Path(tempfile.mkdtemp(prefix=f"cosim-worker-{self.name}-fmus-"))
+        # local user plant an FMU under the name of a hash, which would then be run; made
+        # once the session is open (`serve`) or at the first FMU, removed when serve ends
+        self._fmu_cache: Path | None = None
         self.mode = session_mode(self.settings.listen, self.settings.connect)
 
     # ------------------------------------------------------------------ serving
@@ -122,6 +125,15 @@ class Worker:
             on_ready: called once the queryable and token are declared.
         """
         stop_event = stop_event_with_signals(stop_event)
+        try:
+            self._serve(stop_event, on_ready)
+        finally:  # on every path, a failed start included: no cache folder left behind
+            if self._fmu_cache is not None:
+                shutil.rmtree(self._fmu_cache, ignore_errors=True)
+                self._fmu_cache = None
+
+    def _serve(self, stop_event: threading.Event,
+               on_ready: Callable[[], None] | None) -> None:
         conf = zenoh_config(self.settings, self.mode, self.settings.listen, self.settings.connect)
         try:
             session = zenoh.open(conf)
@@ -131,6 +143,7 @@ class Worker:
                             f"{exc}") from None
         with session:
             self._session = session
+            self._cache_folder()
             token = session.liveliness().declare_token(proto.worker_key(self.name))
             queryable = session.declare_queryable(proto.worker_key(self.name))
             reaper = threading.Thread(target=self._reap_loop, args=(stop_event,),
@@ -144,9 +157,14 @@ class Worker:
                 stop_event.set()
                 reaper.join()
                 self._stop_all()
-                shutil.rmtree(self._fmu_cache, ignore_errors=True)
                 queryable.undeclare()
                 token.undeclare()
+
+    def _cache_folder(self) -> Path:
+        """The worker's private FMU cache folder (made on first use)."""
+        if self._fmu_cache is None:
+            self._fmu_cache = Path(tempfile.mkdtemp(prefix=f"cosim-worker-{self.name}-fmus-"))
+        return self._fmu_cache
 
     def _answer_until(self, queryable: Any, stop_event: threading.Event) -> None:
         while not stop_event.is_set():
@@ -250,7 +268,7 @@ class Worker:
                             f"start it with --allow-fmu to permit it")
         if not isinstance(payload, dict):
             raise ValueError(f"start request of FMU component {component!r} carries no FMU")
-        return store_fmu(payload, self._fmu_cache)
+        return store_fmu(payload, self._cache_folder())
 
     def _stop(self, request: dict[str, Any]) -> int | None:
         key = (str(request["run_id"]), str(request["component"]))

@@ -88,7 +88,7 @@ def test_refused_and_malformed_requests_name_the_worker():
     reply = agent.handle(encode(start))
     assert reply["ok"] is False
     assert "worker 'w7'" in reply["error"] and "refuses component 'ctl'" in reply["error"]
-    assert "module 'os' is not in its allow-list (controllers.)" in reply["error"]
+    assert "module 'os' is not in its allow-list (controllers., cosim.sources)" in reply["error"]
     assert agent.handle(b"{not json")["error"].startswith("worker 'w7' on host")
     assert "unknown op 'fly'" in agent.handle(encode({"op": "fly"}))["error"]
     bad_run = agent.handle(encode({**start, "class_path": "controllers.x:Y", "run_id": "a/b"}))
@@ -137,10 +137,11 @@ def test_placement_from_yaml_and_command_line(tmp_path):
         parse_place(["mixer=a", "mixer=b"])
 
 
-def test_deployment_file_paths_and_errors(tmp_path):
+def test_deployment_file_paths_and_errors(tmp_path, certs):
     (tmp_path / "certs").mkdir()
-    for name in ("ca.pem", "n.pem", "n-key.pem"):
-        (tmp_path / "certs" / name).write_text("x")
+    for name, source in (("ca.pem", "ca.pem"), ("n.pem", "node.pem"), ("n-key.pem", "node-key.pem")):
+        (tmp_path / "certs" / name).write_bytes((certs / "good" / source).read_bytes())
+    (tmp_path / "certs" / "n-key.pem").chmod(0o600)
     good = tmp_path / "deploy.yaml"
     good.write_text("listen: [tls/10.0.0.1:7447]\nconnect: [tls/10.0.0.2:7447]\n"
                     "tls: {root_ca_certificate: certs/ca.pem, certificate: certs/n.pem, "
@@ -159,12 +160,12 @@ def test_deployment_file_paths_and_errors(tmp_path):
     bad.write_text("listen: [10.0.0.1:7447]\ncolour: red\n")
     with pytest.raises(UserError) as error:
         load_deploy(bad)
-    assert f"{bad}: listen" in str(error.value) and "10.0.0.1:7447" in str(error.value)
-    assert f"{bad}: colour" in str(error.value)
+    assert f"{bad}:1: listen" in str(error.value) and "10.0.0.1:7447" in str(error.value)
+    assert f"{bad}:2: colour" in str(error.value)
     missing = tmp_path / "missing.yaml"
     missing.write_text("tls: {root_ca_certificate: no.pem, certificate: certs/n.pem, "
                        "private_key: certs/n-key.pem}\n")
-    with pytest.raises(UserError, match=r"missing.yaml: tls.root_ca_certificate: no such file"):
+    with pytest.raises(UserError, match=r"missing.yaml:1: tls.root_ca_certificate: no such file"):
         load_deploy(missing)
 
 

@@ -182,7 +182,8 @@ class Layout:
             out[at] = value
         at, kept = self._arrays_at, self._kept
         for index, (name, size) in enumerate(self._arrays):
-            if data[HEADER.size + index] == _SENT:
+            mark = data[HEADER.size + index]
+            if mark == _SENT:
                 if at + 8 * size > len(data):
                     raise CodecError(f"message of {len(data)} bytes ends inside {self.role} "
                                      f"{name!r} (ports {list(self.names)})")
@@ -190,6 +191,9 @@ class Layout:
                 array.flags.writeable = False
                 kept[index] = array
                 at += 8 * size
+            elif mark != 0:
+                raise CodecError(f"mask byte {mark} of {self.role} {name!r} is neither 0 "
+                                 f"(held) nor 1 (sent)")
             elif kept[index] is None:
                 raise CodecError(f"{self.role} {name!r} held before it was ever sent")
             out[self._array_at[index]] = kept[index]

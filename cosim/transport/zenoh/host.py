@@ -13,6 +13,12 @@ Every session of the run authenticates with the run's credential (Zenoh
 user-password; see `cosim.transport.zenoh.auth`): the master accepts only
 peers that present it, and only on the run's keys.
 
+A reply that is not a well-formed message of the protocol (shorter than the
+header, of an unknown kind, JSON that is not the expected object, values of
+the wrong size) fails the run like any component failure, naming the
+component and the tick: "malformed reply: ..." (the manifest's cause has
+kind "malformed_reply"). It never ends the master with a traceback.
+
 Start-up is ordered for speed: `spawn()` opens the session and starts the
 processes before this module loads numpy (codec, live view, watchdog), so
 the children's interpreters start while the master finishes its own imports.
@@ -20,6 +26,8 @@ the children's interpreters start while the master finishes its own imports.
 
 from __future__ import annotations
 
+import json
+import struct
 import time
 from collections.abc import Mapping, Sequence, Set
 from typing import TYPE_CHECKING, Any
@@ -43,6 +51,9 @@ if TYPE_CHECKING:  # numpy-backed modules load after the processes are spawned
 HELLO_RETRY_S = 0.02
 TERMINATE_GRACE_S = 2.0
 OPEN_ATTEMPTS = 5
+# what may arrive on a component's reply key: its own replies, and the watchdog's wake-ups
+REPLY_KINDS = frozenset({Kind.PORTS, Kind.OUTPUTS, Kind.METRICS, Kind.ERROR, Kind.USED,
+                         Kind.DIED, Kind.TIMEOUT})
 
 
 class RemoteComponent:
@@ -306,16 +317,23 @@ class ZenohComponents:
                     continue
                 got = True
                 data = sample.payload.to_bytes()
-                kind = HEADER.unpack_from(data)[0]
+                kind = _kind_of(name, data, None, 0.0)
                 if kind == Kind.ERROR:
-                    raise _build_error(name, decode_json(data))
+                    raise _build_error(name, _json_fields(name, data, None, 0.0, "cause"))
                 if kind == Kind.PORTS:
-                    document = decode_json(data)
+                    document = _json_fields(name, data, None, 0.0, "inputs", "outputs", "pid")
+                    try:
+                        inputs = ports_from_json(document["inputs"])
+                        outputs = ports_from_json(document["outputs"])
+                        pid = int(document["pid"])
+                        startup = {str(k): v for k, v in dict(document.get("startup_s") or {}).items()}
+                    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+                        raise malformed(name, None, 0.0, f"its port declarations do not parse: "
+                                        f"{type(exc).__name__}: {exc}") from None
                     ready[name] = RemoteComponent(
-                        self, pending.pop(name), ports_from_json(document["inputs"]),
-                        ports_from_json(document["outputs"]), int(document["pid"]),
+                        self, pending.pop(name), inputs, outputs, pid,
                         channels[name], bool(document.get("uses_outputs")))
-                    self.process_startup_s[name] = dict(document.get("startup_s") or {})
+                    self.process_startup_s[name] = startup
             if not got:
                 time.sleep(0.002)
 
@@ -352,7 +370,7 @@ class ZenohComponents:
         try:
             return decode(data)
         except CodecError as exc:
-            raise self._fail(ComponentFailure(remote.name, tick, t, str(exc))) from None
+            raise self._fail(malformed(remote.name, tick, t, str(exc))) from None
 
     def exchange_use(self, remote: RemoteComponent, names: Set[str]) -> None:
         """Send USE with `names` to `remote` and wait until its use_outputs returned."""
@@ -367,8 +385,19 @@ class ZenohComponents:
         if remote.name in self._failed:
             return {}
         request = HEADER.pack(Kind.STOP, self._seq + 1, -1, 0.0)
-        data = self._exchange(remote, request, None, 0.0)
-        return {str(k): float(v) for k, v in decode_json(data).items()}
+        try:
+            data = self._exchange(remote, request, None, 0.0)
+        except ComponentFailure as exc:
+            if exc.details.get("kind") != "malformed_reply":
+                raise
+            # not an initialization failure: stop_all reports it at the last tick
+            raise CodecError(exc.cause) from None
+        try:
+            return {str(k): float(v) for k, v in decode_json(data).items()}
+        except (ValueError, TypeError, AttributeError):  # JSON, Unicode errors are ValueErrors
+            # the master's stop_all reports it as this component's stop failure
+            raise CodecError("malformed reply: its metrics are not a JSON object of "
+                             "numbers") from None
 
     def _exchange(self, remote: RemoteComponent, request: bytes, tick: int | None,
                   t: float) -> bytes:
@@ -386,25 +415,39 @@ class ZenohComponents:
         recv = remote.replies.recv
         while True:
             data = recv().payload.to_bytes()
-            kind, reply_seq = HEADER.unpack_from(data)[:2]
+            try:
+                kind, reply_seq = HEADER.unpack_from(data)[:2]
+            except struct.error:
+                watchdog.disarm()
+                raise self._fail(malformed(remote.name, tick, t, _short(data))) from None
             if reply_seq == seq and (kind == Kind.OUTPUTS or kind == Kind.METRICS
                                      or kind == Kind.USED):
                 watchdog.disarm()
                 return data
-            failure = self._failure_in(kind, reply_seq, seq, data, remote, tick, t)
+            try:
+                failure = self._failure_in(kind, reply_seq, seq, data, remote, tick, t)
+            except ComponentFailure as malformed_reply:
+                failure = malformed_reply
             if failure is not None:
                 watchdog.disarm()
                 raise self._fail(failure)
 
     def _failure_in(self, kind: int, reply_seq: int, seq: int, data: bytes,
                     remote: RemoteComponent, tick: int | None, t: float) -> ComponentFailure | None:
-        """The failure a non-matching message reports, or None for a stale one to skip."""
+        """The failure a non-matching message reports, or None for a stale one to skip
+        (raises the malformed-reply failure of one whose JSON is not what its kind says)."""
+        if kind not in REPLY_KINDS:
+            return malformed(remote.name, tick, t, f"unknown message kind {kind}")
         if kind in (Kind.ERROR, Kind.TIMEOUT) and reply_seq == seq:
-            return ComponentFailure(remote.name, tick, t, decode_json(data)["cause"])
+            return ComponentFailure(remote.name, tick, t,
+                                    _json_fields(remote.name, data, tick, t, "cause")["cause"])
         if kind == Kind.DIED:
-            document = decode_json(data)
+            document = _json_fields(remote.name, data, tick, t, "component", "cause")
             name = document["component"]
             assert self._watchdog is not None
+            if name not in self._children:
+                return malformed(remote.name, tick, t, f"a death notice of {name!r}, "
+                                 f"which is no component of this run")
             if name not in self._watchdog.finished:
                 return ComponentFailure(name, tick, t, document["cause"])
         return None
@@ -446,6 +489,53 @@ class ZenohComponents:
         """
         if self._live is not None:
             self._live.publish(tick, t, names, values)
+
+
+def malformed(component: str, tick: int | None, t: float, problem: str) -> ComponentFailure:
+    """The failure of a component whose reply is not a well-formed protocol message.
+
+    Args:
+        component: the component whose reply key it came on.
+        tick, t: the exchange it answered (None: start-up).
+        problem: what is wrong with it, e.g. "7 bytes, shorter than the 32-byte header".
+    """
+    return ComponentFailure(component, tick, t, f"malformed reply: {problem}",
+                            {"kind": "malformed_reply"})
+
+
+def _short(data: bytes) -> str:
+    return f"{len(data)} bytes, shorter than the {HEADER.size}-byte message header"
+
+
+def _kind_of(component: str, data: bytes, tick: int | None, t: float) -> int:
+    """The kind of a reply; ComponentFailure when it is short or of an unknown kind."""
+    try:
+        kind = HEADER.unpack_from(data)[0]
+    except struct.error:
+        raise malformed(component, tick, t, _short(data)) from None
+    if kind not in REPLY_KINDS:
+        raise malformed(component, tick, t, f"unknown message kind {kind}")
+    return kind
+
+
+def _json_fields(component: str, data: bytes, tick: int | None, t: float,
+                 *keys: str) -> dict[str, Any]:
+    """The JSON object of a control reply, which must hold `keys` ("cause" a string);
+    ComponentFailure (malformed reply) otherwise."""
+    try:
+        document = decode_json(data)
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise malformed(component, tick, t, f"its JSON does not parse: {exc}") from None
+    if not isinstance(document, dict):
+        raise malformed(component, tick, t, f"its JSON is a {type(document).__name__}, "
+                        f"not an object")
+    missing = [key for key in keys if key not in document]
+    if missing:
+        raise malformed(component, tick, t, f"its JSON lacks {', '.join(map(repr, missing))}")
+    for key in ("cause", "component"):
+        if key in keys and not isinstance(document[key], str):
+            raise malformed(component, tick, t, f"its JSON {key!r} is not a string")
+    return document
 
 
 def _build_error(component: str, document: dict[str, Any]) -> UserError:
