@@ -349,8 +349,13 @@ class Master:
             self.crumb[0] = crumb_code(plan.index, CALL_STOP, last)
             try:
                 metrics[plan.name] = dict(plan.hosted.stop() or {})
-            except Exception as exc:  # keep stopping the others
-                failures.append(exc if isinstance(exc, ComponentFailure) else ComponentFailure(
+            except ComponentFailure as exc:  # keep stopping the others
+                if exc.tick is None and self.ticks_done > 0:  # a host that did not say when
+                    exc = ComponentFailure(exc.component, last, self.t0 + last * self.tick,
+                                           exc.cause, exc.details)
+                failures.append(exc)
+            except Exception as exc:
+                failures.append(ComponentFailure(
                     plan.name, last, self.t0 + last * self.tick, f"stop failed: {exc}",
                     {"kind": "exception", "exception": type(exc).__name__}))
             finally:

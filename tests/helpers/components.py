@@ -387,3 +387,10 @@ class ChangesDirectory(Component):
         import os
         os.chdir("/")
         return {"y": inputs["u"]}
+
+
+class FailsToFinish(Echo):
+    """Echo whose finish() raises: a failure after the last tick."""
+
+    def finish(self) -> dict[str, float]:
+        raise ValueError("cannot summarize")

@@ -89,3 +89,14 @@ def test_a_module_that_fails_at_import_is_one_line(tmp_path, transport, kind):
     assert message.endswith(f"component 'g': importing module 'm_{kind}' failed"
                             + said.format(path=module)), message
     sys.modules.pop(f"m_{kind}", None)
+
+
+@pytest.mark.parametrize("transport", ["inproc", "zenoh"])
+def test_a_failing_finish_is_named_at_the_last_tick_on_both_transports(tmp_path, transport):
+    text = SCENARIO.format(python="tests.helpers.components:FailsToFinish", parameters="{}")
+    path = tmp_path / "finish.yaml"
+    path.write_text(text)
+    result = run_scenario(load_scenario(path), tmp_path / "run", transport=transport, progress=False)
+    assert (result.status, result.error) == (
+        "failed", "component 'g' failed at tick 30 (t=0.3 s): finish() failed: "
+                  "ValueError: cannot summarize")
