@@ -180,7 +180,8 @@ class FmuInstance:
         if status == FATAL:
             self._fatal = True
         details = ({"kind": "fmi_status", "status": _STATUS.get(status, status)} if status
-                   else dict(getattr(exc, "details", {})))  # a solver's finding, if it says one
+                   else dict(getattr(exc, "details", {}))  # a solver's finding, if it says one
+                   or {"kind": "fmu_error", "exception": type(exc).__name__})
         return ComponentFailure(self.name, tick, t, f"{_call_text(exc, where)} (FMU "
                                 f"{self.path.name}: {self.log.text()})", details)
 

@@ -388,6 +388,8 @@ def test_an_fmu_that_cannot_be_instantiated_leaves_no_extracted_folder(tmp_path,
     last = done.stderr.strip().splitlines()[-1]
     assert last.startswith("run failed: component 'inst_null' failed during initialization "
                            "(t=0 s): ") and "Failed to instantiate model" in last, last
+    cause = json.loads((out / "manifest.json").read_text())["cause"]
+    assert (cause["kind"], cause["component"], cause["tick"]) == ("fmu_error", "inst_null", None)
     assert left == [] and extracted == []
 
 
