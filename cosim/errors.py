@@ -117,6 +117,12 @@ class ComponentFailure(UserError):
         )
 
 
+class StartFault(ComponentFailure):
+    """A component process died or hung before its handshake: a fault of the run, not of its
+    input, so `cosim run` exits 1 ("run failed:"), as for a constructor that crashes or
+    hangs in the master's process, not 2 as for a scenario or parameter mistake."""
+
+
 class RunFolderError(UserError):
     """The run folder cannot be written: "cannot write the run folder X: <reason> at tick k".
 

@@ -23,7 +23,7 @@ from cosim import startup_gc
 from cosim.cli import interrupts
 from cosim.cli.common import STRICT_HELP, print_warning, user_error_exit
 from cosim.engine import one_cpu
-from cosim.errors import UserError
+from cosim.errors import StartFault, UserError
 from cosim.execution.figure_process import FigureProcess
 from cosim.execution.finish import analyse_run_folder  # shared with cosim.run (the Python API)
 from cosim.scenario.shipped import resolve_scenario
@@ -166,6 +166,8 @@ def _start_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path
             early = prestart_components(scenario_file)  # their start overlaps the scenario's load
         return _load_and_run(scenario_file, overrides, out, endpoints, clock, foxglove,
                              prestart=early, **run_options)
+    except StartFault as fault:  # a component process died or hung before tick 0
+        raise _failed_run_exit(str(fault)) from None
     except UserError as error:
         raise user_error_exit(error) from None
     except KeyboardInterrupt as exc:  # Ctrl-C before tick 0 (after it, the run records it itself)
@@ -199,6 +201,17 @@ def check_out_option(out: Optional[str], force: bool) -> Optional[Path]:
     return None if out is None else check_out_folder(out, force)
 
 
+def _failed_run_exit(line: str) -> typer.Exit:
+    """Print `run failed: LINE` on stderr (LINE as it is, no markup read from it); the exit
+    of a failed run (status 1)."""
+    from rich.console import Console
+    from rich.markup import escape
+
+    Console(stderr=True, highlight=False, soft_wrap=True).print(
+        f"[red]run failed:[/red] {escape(line)}", markup=True)
+    return typer.Exit(EXIT_FAILED_RUN)
+
+
 def _interrupted_exit(stop_error: str | None = None, where: str = "") -> typer.Exit:
     """Say the run was interrupted before tick 0; the exit of a failed run (status 1).
 
@@ -206,16 +219,11 @@ def _interrupted_exit(stop_error: str | None = None, where: str = "") -> typer.E
         stop_error: an error raised while the interrupted start-up was undone.
         where: what the run was doing, when known ("in the constructor of component 'x'").
     """
-    from rich.console import Console
-    from rich.markup import escape
-
     from cosim.execution.abort import INTERRUPTED_BEFORE_TICK0
 
     note = (f" ({where})" if where else "") + (f" (then, while stopping: {stop_error})"
                                                 if stop_error else "")
-    Console(stderr=True, highlight=False, soft_wrap=True).print(
-        f"[red]run failed:[/red] {INTERRUPTED_BEFORE_TICK0}{escape(note)}", markup=True)
-    return typer.Exit(EXIT_FAILED_RUN)
+    return _failed_run_exit(INTERRUPTED_BEFORE_TICK0 + note)
 
 
 def _load_and_run(scenario_file: Path, overrides: list[str], out: Optional[Path],
@@ -290,12 +298,7 @@ def _finish_run(result: Any, figures: bool, mcap: bool = False, drawer: Any = No
         print(f"stopped by component {stopped['component']!r} at tick {stopped['tick']} "
               f"(t={stopped['time']:.10g} s): {stopped['reason']}")
     if result.status != "ok":
-        from rich.console import Console
-        from rich.markup import escape
-
-        Console(stderr=True, highlight=False, soft_wrap=True).print(
-            f"[red]run failed:[/red] {escape(str(result.error))}", markup=True)
-        raise typer.Exit(EXIT_FAILED_RUN)
+        raise _failed_run_exit(str(result.error))
 
 
 def _print_live(run_id: str, endpoint: str) -> None:

@@ -78,14 +78,20 @@ def test_a_constructor_that_ends_the_master_is_reported_by_the_supervisor(
 
 
 @pytest.mark.timeout(120)
-def test_a_constructor_in_its_own_process_fails_the_handshake_at_the_startup_timeout(tmp_path):
-    text = SCENARIO.format(cls="ConstructorFault", parameters="{mode: hang}")
+@pytest.mark.parametrize("cls, parameters, cause", [
+    ("ConstructorFault", "{mode: hang}", "no handshake within 1 s after its process started"),
+    ("ExitsInInit", "{code: 3}", "process exited with code 3 before its handshake"),
+], ids=["hang", "exit"])
+def test_a_constructor_fault_in_its_own_process_is_a_failed_run(tmp_path, cls, parameters, cause):
+    """Exit 1 and "run failed:", as the same fault in the master's process (a fault of the
+    run, not of its input: cosim.errors.StartFault)."""
+    text = SCENARIO.format(cls=cls, parameters=parameters)
     done, out, left = run_cosim(tmp_path, text, "--startup-timeout", "1")
-    assert done.returncode == 2, done.stderr
-    assert done.stderr.strip().splitlines()[-1] == (
-        "error: component 'plant' failed during initialization (t=0 s): "
-        "no handshake within 1 s after its process started")
-    assert json.loads((out / "manifest.json").read_text())["status"] == "failed"
+    assert done.returncode == 1, done.stderr
+    line = f"component 'plant' failed during initialization (t=0 s): {cause}"
+    assert done.stderr.strip().splitlines()[-1] == f"run failed: {line}"
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert (manifest["status"], manifest["error"]) == ("failed", line)
     assert left == []
 
 

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import zenoh
 
-from cosim.errors import ComponentFailure, UserError
+from cosim.errors import ComponentFailure, StartFault, UserError
 from cosim.transport.launch import STARTUP_TIMEOUT_S, PythonComponentLaunch
 from cosim.transport.zenoh import auth, config, runtime
 from cosim.transport.zenoh.auth import Credential, Dictionary, new_credential
@@ -298,7 +298,7 @@ class ZenohComponents:
             self._collect_hellos(pending, channels, ready, time.monotonic() + HELLO_RETRY_S)
             if pending and time.monotonic() > end:
                 name = next(iter(pending))
-                raise ComponentFailure(name, None, 0.0, f"no handshake within "
+                raise StartFault(name, None, 0.0, f"no handshake within "
                                        f"{self._startup_timeout_s:g} s after its process started")
         # declaration order, not the order the answers happened to arrive in
         return {spec.name: ready[spec.name] for spec in self.specs}
@@ -340,7 +340,7 @@ class ZenohComponents:
     def _check_alive_at_start(self, name: str) -> None:
         child = self._children[name]
         if child.exit_code() is not None:
-            raise ComponentFailure(name, None, 0.0, f"{child.describe_exit()} before its handshake")
+            raise StartFault(name, None, 0.0, f"{child.describe_exit()} before its handshake")
 
     # ----------------------------------------------------------------- exchanges
     def exchange_outputs(self, remote: RemoteComponent, kind: int, tick: int | None,
