@@ -287,8 +287,9 @@ def lane_from_opendrive(spec: Mapping, where: str = "road") -> tuple[Path, int, 
     s0 = spec_number(spec.get("s_start", 0.0), f"{where}.s_start")
     s1 = spec_number(spec.get("s_end", road.length), f"{where}.s_end")
     if not 0.0 <= s0 < s1 <= road.length + 1e-9:
-        raise SpecError(f"{where}: expected 0 <= s_start < s_end <= {road.length:g} (the road's "
-                        f"length), got s_start = {s0:g}, s_end = {s1:g}")
+        raise SpecError(f"{where}: expected 0 <= s_start < s_end <= {road.length!r} (the road's "
+                        f"length; leave s_end out for the whole road), got s_start = {s0!r}, "
+                        f"s_end = {s1!r}")
     step = spec_number(spec.get("step", DEFAULT_STEP), f"{where}.step", positive=True)
     closed = spec.get("closed")
     if closed is not None and not isinstance(closed, bool):

@@ -228,7 +228,8 @@ class _Options:
 def check_out_folder(out: str | Path, force: bool = False, option: str = "--out") -> Path:
     """The run folder a run may write: not an empty name, and not an existing non-empty
     folder unless `force`, and then only an earlier run folder (one with a manifest.json),
-    which the run replaces whole (`run_scenario(replace=True)`).
+    which the run replaces whole (`run_scenario(replace=True)`); the folder of a run that
+    failed before tick 0 (`never_started`) is replaced without `force`.
 
     Args:
         out: the folder asked for.
@@ -245,9 +246,10 @@ def check_out_folder(out: str | Path, force: bool = False, option: str = "--out"
         occupied = folder.is_dir() and any(folder.iterdir())
     except OSError as exc:
         raise UserError(f"{option} {out}: cannot read the folder: {exc.strerror or exc}") from None
-    if occupied and not force:
+    if occupied and not force and not never_started(folder):
         raise UserError(f"{option} {out}: the folder exists and is not empty (another run?); "
-                        f"choose another folder, or replace that run with --force")
+                        f"choose another folder, or replace that run with "
+                        f"{'--force' if option.startswith('--') else 'force=True'}")
     if occupied and not (folder / "manifest.json").is_file():
         raise UserError(f"{option} {out}: the folder is not empty and is not a run folder (no "
                         f"manifest.json); --force replaces only an earlier run's folder")
@@ -269,6 +271,22 @@ def _temporary_folder_of_the_run(page: Any, stack: contextlib.ExitStack) -> None
         stack.callback(setattr, tempfile, "tempdir", previous)
 
 
+def never_started(folder: Path) -> bool:
+    """Whether `folder` holds only what a run that failed before tick 0 left (its manifest,
+    ticks 0, and its live credential or run.log): nothing a new run there would lose, so
+    the command run again after a fixed mistake needs no --force."""
+    import json
+
+    leftovers = {"manifest.json", "live.credential", "run.log"}
+    try:
+        names = {entry.name for entry in folder.iterdir()}
+        manifest = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return (names <= leftovers and isinstance(manifest, dict)
+            and manifest.get("status") == "failed" and manifest.get("ticks") == 0)
+
+
 def _make_run_folder(out: Path, replace: bool) -> Path:
     """Create the run folder, absolute (an FMU may change the working directory) and
     private (0700: other local users cannot read the run's signals, whatever the umask
@@ -277,7 +295,7 @@ def _make_run_folder(out: Path, replace: bool) -> Path:
     UserError."""
     out = out.absolute()
     try:
-        if replace and out.is_dir() and any(out.iterdir()):
+        if out.is_dir() and any(out.iterdir()) and (replace or never_started(out)):
             check_out_folder(out, force=True)
             _empty_folder(out)
         out.mkdir(mode=RUN_FOLDER_MODE, parents=True, exist_ok=True)

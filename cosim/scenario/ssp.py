@@ -45,6 +45,9 @@ CONNECTOR_TYPES = ("Real", "Float64", "Float32", "Integer", "Int8", "UInt8", "In
                    "Binary", "Clock")
 KINDS = ("input", "output", "parameter", "calculatedParameter", "structuralParameter",
          "constant", "local", "inout", "unspecified")
+# what an SSP's component must be: its import has no setting for the interface
+SSP_RUNS = ("an SSP's components run as co-simulation FMUs (a Model Exchange FMU runs from a "
+            "scenario YAML with interface: model_exchange)")
 
 
 @dataclass
@@ -162,7 +165,7 @@ def _component(package: SspPackage, member: str, element: Any, what: str) -> Ssp
     implementation = element.get("implementation", "any")
     if implementation in ("ModelExchange", "ScheduledExecution"):
         package.error(member, element, what, f"implementation={implementation!r} is not "
-                      "supported: the platform runs co-simulation FMUs only")
+                      f"supported: {SSP_RUNS}")
         return None
     source = element.get("source")
     resolved = package.resolve(source, member) if source else None
@@ -192,7 +195,7 @@ def _describe(package: SspPackage, member: str, fmu: Path, element: Any,
         return None
     if md.coSimulation is None:
         package.error(package.ssd_member, element, what, f"{member} is a Model Exchange-only "
-                      "FMU; the platform runs co-simulation FMUs only")
+                      f"FMU; {SSP_RUNS}")
         return None
     variables = {}
     for var in md.modelVariables:

@@ -68,7 +68,8 @@ def test_force_refuses_a_folder_that_is_not_a_run_folder(tmp_path):
 def test_the_python_api_refuses_what_the_command_refuses(tmp_path):
     out = tmp_path / "run"
     cosim.run("open_loop", set=["duration=0.5"], out=out)
-    with pytest.raises(UserError, match=r"^out .*: the folder exists and is not empty"):
+    with pytest.raises(UserError, match=r"^out .*: the folder exists and is not empty .*"
+                                        r"replace that run with force=True$"):
         cosim.run("open_loop", set=["duration=0.5"], out=out)
     with pytest.raises(UserError, match="^out needs a folder name, got an empty one$"):
         cosim.run("open_loop", set=["duration=0.5"], out="")
@@ -99,3 +100,19 @@ def test_a_run_folder_is_private_to_its_owner(tmp_path):
                                 str(tmp_path / "new" / "run" / "signals.csv")],
                                capture_output=True, text=True)
         assert other.returncode != 0 and "Permission denied" in other.stderr
+
+
+def test_the_folder_of_a_run_that_never_started_is_reused_without_force(tmp_path):
+    """Run again after fixing a mistake found at start-up: the same --out just works."""
+    out = tmp_path / "run"
+    typo = _cosim("run", "lane_change", "--no-figures", "--out", str(out),  # Zenoh: after the folder
+                  "--set", "components.controller.python=controllers.backstepping:Backsteping")
+    assert typo.returncode == 2 and "has no class 'Backsteping'" in typo.stderr
+    assert json.loads((out / "manifest.json").read_text())["status"] == "failed"
+    fixed = _cosim("run", "lane_change", "--transport", "inproc", "--no-figures", "--out", str(out),
+                   "--set", "duration=1")
+    assert fixed.returncode == 0, fixed.stderr
+    assert json.loads((out / "manifest.json").read_text())["status"] == "ok"
+    again = _cosim("run", "lane_change", "--transport", "inproc", "--no-figures", "--out", str(out),
+                   "--set", "duration=1")  # a run that did start is kept unless --force
+    assert again.returncode == 2 and "the folder exists and is not empty" in again.stderr

@@ -137,8 +137,10 @@ def test_unknown_parameter_and_non_float_value_in_an_ssv(tmp_path, lag_fmus):
 
 
 @pytest.mark.parametrize("change, message", [
-    ('implementation="CoSimulation"', "implementation='ModelExchange' is not supported: the "
-                                      "platform runs co-simulation FMUs only"),
+    ('implementation="CoSimulation"', "implementation='ModelExchange' is not supported: an "
+                                      "SSP's components run as co-simulation FMUs (a Model "
+                                      "Exchange FMU runs from a scenario YAML with interface: "
+                                      "model_exchange)"),
     ('<ssc:LinearTransformation factor="1.3" offset="50"/>',
      "ssc:BooleanMappingTransformation is not supported (only ssc:LinearTransformation"),
     ('<ssd:Component name="lag2"', "nested systems are not supported"),

@@ -153,7 +153,8 @@ def test_generator_writes_the_shipped_file(tmp_path):
     ({"road": "9"}, "road.road: no road with id '9'"),
     ({"lane": -3}, "has no lane -3 in its lane section at s = 0"),
     ({"lane": 0}, "road.lane: expected a non-zero OpenDRIVE lane id"),
-    ({"s_end": 1e5}, "road: expected 0 <= s_start < s_end <= 2529.09"),
+    ({"s_end": 1e5}, "road: expected 0 <= s_start < s_end <= 2529.085"),
+    ({"s_end": 2529.09}, "road: expected 0 <= s_start < s_end <= 2529.085"),  # not rounded up
     ({"lanes": 0}, "road.lanes: expected an integer >= 1"),
     ({"closed": True, "s_end": 100}, "road.closed: the lane centre does not close"),
     ({"colour": "red"}, "road: unknown keys ['colour']"),
