@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cosim.errors import UserError
-from cosim.execution import fmu_hosting, supervisor
+from cosim.execution import fmu_hosting, out_folder, supervisor
 from cosim.transport.launch import STARTUP_TIMEOUT_S, PythonComponentLaunch
 from cosim.execution.abort import (locate_parameter_problem, start_failure_text,
                                    write_pending_manifest, write_start_failure)
@@ -239,18 +239,12 @@ def check_out_folder(out: str | Path, force: bool = False, option: str = "--out"
         UserError for an empty name, an occupied folder without `force`, or with it a
         folder that is not a run folder (`--out / --force` must not empty /).
     """
-    if not str(out).strip():
-        raise UserError(f"{option} needs a folder name, got an empty one")
-    folder = Path(out)
-    try:
-        occupied = folder.is_dir() and any(folder.iterdir())
-    except OSError as exc:
-        raise UserError(f"{option} {out}: cannot read the folder: {exc.strerror or exc}") from None
-    if occupied and not force and not never_started(folder):
+    folder, in_use = out_folder.occupied(out, option)
+    if in_use and not force and not never_started(folder):
         raise UserError(f"{option} {out}: the folder exists and is not empty (another run?); "
                         f"choose another folder, or replace that run with "
                         f"{'--force' if option.startswith('--') else 'force=True'}")
-    if occupied and not (folder / "manifest.json").is_file():
+    if in_use and not (folder / "manifest.json").is_file():
         raise UserError(f"{option} {out}: the folder is not empty and is not a run folder (no "
                         f"manifest.json); --force replaces only an earlier run's folder")
     return folder
@@ -297,7 +291,7 @@ def _make_run_folder(out: Path, replace: bool) -> Path:
     try:
         if out.is_dir() and any(out.iterdir()) and (replace or never_started(out)):
             check_out_folder(out, force=True)
-            _empty_folder(out)
+            out_folder.empty_folder(out)
         out.mkdir(mode=RUN_FOLDER_MODE, parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"cannot create the run folder {str(out)!r}: "
@@ -305,17 +299,6 @@ def _make_run_folder(out: Path, replace: bool) -> Path:
     with contextlib.suppress(OSError):  # a folder that was there (not ours, read-only: as it is)
         out.chmod(RUN_FOLDER_MODE)
     return out
-
-
-def _empty_folder(folder: Path) -> None:
-    """Remove what `folder` holds (its symbolic links, not what they point to)."""
-    import shutil
-
-    for entry in folder.iterdir():
-        if entry.is_dir() and not entry.is_symlink():
-            shutil.rmtree(entry)
-        else:
-            entry.unlink()
 
 
 def _count_of_runs(runs: Any) -> int | None:

@@ -30,11 +30,11 @@ import faulthandler
 import json
 import os
 import re
-import shutil
 import sysconfig
 from collections.abc import Callable
 from pathlib import Path
 from cosim.errors import UserError
+from cosim.execution import out_folder
 
 MAX_SAMPLES = 100_000  # a sweep's samples at most: a run folder each (and a row, a task)
 SWEEP_INDEX_FILES = ("sweep.json", "samples.csv")  # what makes a folder an earlier sweep's
@@ -68,31 +68,21 @@ def check_sweep_out(out: str | Path, force: bool, option: str = "--out") -> bool
         UserError for an empty name, an occupied folder without `force`, or with it a
         folder that is not a sweep's (`--out / --force` must not empty /).
     """
-    if not str(out).strip():
-        raise UserError(f"{option} needs a folder name, got an empty one")
-    folder = Path(out)
-    try:
-        occupied = folder.is_dir() and any(folder.iterdir())
-    except OSError as exc:
-        raise UserError(f"{option} {out}: cannot read the folder: {exc.strerror or exc}") from None
-    if occupied and not force:
+    folder, in_use = out_folder.occupied(out, option)
+    if in_use and not force:
         raise UserError(f"{option} {out}: the folder exists and is not empty (another sweep?); "
                         f"choose another folder, or replace that sweep with --force")
-    if occupied and not any((folder / name).is_file() for name in SWEEP_INDEX_FILES):
+    if in_use and not any((folder / name).is_file() for name in SWEEP_INDEX_FILES):
         raise UserError(f"{option} {out}: the folder is not empty and is not a sweep's folder "
                         f"(no sweep.json or samples.csv); --force replaces only an earlier "
                         f"sweep's folder")
-    return occupied
+    return in_use
 
 
 def empty_folder(folder: Path, option: str = "--out") -> None:
     """Remove everything in `folder` (an earlier sweep's, see check_sweep_out)."""
     try:
-        for entry in folder.iterdir():
-            if entry.is_dir() and not entry.is_symlink():
-                shutil.rmtree(entry)
-            else:
-                entry.unlink()
+        out_folder.empty_folder(folder)
     except OSError as exc:
         raise UserError(f"{option} {folder}: cannot replace the earlier sweep there: "
                         f"{exc.strerror or exc}") from None

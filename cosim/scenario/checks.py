@@ -64,13 +64,8 @@ def _finite(value: Any) -> float | None:
 
 def _number(value: Any) -> float | None:
     """A positive finite number from raw data, or None (the schema reports the rest)."""
-    if isinstance(value, bool):
-        return None
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        return None
-    return number if math.isfinite(number) and number > 0 else None
+    number = _finite(value)
+    return number if number is not None and number > 0 else None
 
 
 def semantic_problems(data: Any, base_dir: Path | None,

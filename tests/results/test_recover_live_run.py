@@ -17,22 +17,9 @@ from cosim.engine.master import Master
 from cosim.errors import UserError
 from cosim.results.recorder import Recorder, read_signals
 from cosim.results.recover import recover
+from tests.helpers.components import GOOD
 from tests.helpers.paths import REPO_ROOT
 from tests.results.test_recorder import Echo, Noisy, _comp, _edge, _spooled_rows, _wait
-
-SCENARIO = """\
-name: slow_gain
-duration: 30
-tick: 0.01
-components:
-  gain:
-    python: tests.helpers.components:Gain
-    parameters: {k: 3.0}
-sources:
-  ramp: {kind: ramp, start: 0.0, end: 1.0, t_start: 0.0, t_end: 1.0}
-connections:
-  - {from: ramp.value, to: gain.x}
-"""
 
 
 class RecoverAt:
@@ -75,7 +62,7 @@ def _cosim(*args, **options):
 
 def test_cosim_recover_refuses_a_running_run_then_recovers_it_once_killed(tmp_path):
     scenario = tmp_path / "slow.yaml"
-    scenario.write_text(SCENARIO)
+    scenario.write_text(GOOD)  # --set duration=30 below
     out = tmp_path / "run"
     log = (tmp_path / "run.log").open("w")
     run = subprocess.Popen([sys.executable, "-m", "cosim.cli.app", "run", str(scenario),
