@@ -123,3 +123,18 @@ def test_malformed_handshake_reply_fails_during_initialization(message, cause):
                                float("inf"))
     assert (error.value.component, error.value.tick, error.value.cause) == ("mixer", None, cause)
     assert str(error.value) == f"component 'mixer' failed during initialization (t=0 s): {cause}"
+
+
+def test_malformed_metrics_at_stop_are_a_malformed_reply():
+    """Its stop has no tick: the master's stop_all places it at the run's last one."""
+    run_id = f"t-malformed-stop-{os.getpid()}"
+    with ZenohComponents([launch("mixer", "Mixer")], run_id, deadline_s=30.0) as hosted:
+        comp = hosted.components["mixer"]
+        comp.start(0.0, {"u": 1.0, "w": W})
+        hosted.session.put(config.reply_key(run_id, "mixer"),
+                           encode_json(Kind.METRICS, hosted._seq + 1, -1, 0.0, {"steps": "x"}))
+        with pytest.raises(ComponentFailure) as caught:
+            comp.stop()
+    assert (caught.value.tick, caught.value.details) == (None, {"kind": "malformed_reply"})
+    assert caught.value.cause == "malformed reply: its metrics are not a JSON object of numbers"
+    assert run_processes(run_id) == []

@@ -385,19 +385,13 @@ class ZenohComponents:
         if remote.name in self._failed:
             return {}
         request = HEADER.pack(Kind.STOP, self._seq + 1, -1, 0.0)
-        try:
-            data = self._exchange(remote, request, None, 0.0)
-        except ComponentFailure as exc:
-            if exc.details.get("kind") != "malformed_reply":
-                raise
-            # not an initialization failure: stop_all reports it at the last tick
-            raise CodecError(exc.cause) from None
+        # a failure here has no tick: the master's stop_all names the run's last one
+        data = self._exchange(remote, request, None, 0.0)
         try:
             return {str(k): float(v) for k, v in decode_json(data).items()}
         except (ValueError, TypeError, AttributeError):  # JSON, Unicode errors are ValueErrors
-            # the master's stop_all reports it as this component's stop failure
-            raise CodecError("malformed reply: its metrics are not a JSON object of "
-                             "numbers") from None
+            raise malformed(remote.name, None, 0.0, "its metrics are not a JSON object of "
+                            "numbers") from None
 
     def _exchange(self, remote: RemoteComponent, request: bytes, tick: int | None,
                   t: float) -> bytes:
